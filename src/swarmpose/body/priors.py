@@ -1,0 +1,115 @@
+"""Hard priors: joint limits and no inter-penetration of non-adjacent limbs (thesis sec. 5.3.2).
+
+The optimisers call :meth:`HardPriors.valid` to reject candidates (thesis Algorithm 2: a violating
+particle's velocity is re-drawn up to 10 times; HumanEva's APF drops such particles).
+
+Inter-penetration follows the idea of PARSEC bodytrack (a cone approximated by a chain of spheres)
+with one refinement for elliptical cones: for each collision pair ``(A, B)`` the sphere chain of
+``B`` is tested against the *volume* of ``A`` (its elliptical cross-section interpolated along the
+axis), so an arm hanging beside the broad torso is fine while an arm through it is not. A sphere
+of radius ``rho`` centred at local ``(x, y, z)`` of ``A`` collides when ``0 <= z <= L`` and
+``(x / a')**2 + (y / b')**2 < 1`` with ``a' = (1 - tol) * (a(z) + rho)`` (``b'`` alike): ``tol`` is
+the fraction of the summed radii two surfaces may sink into each other before it counts (soft
+tissue, clothing and the coarseness of cones; default 0.5).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from swarmpose.body.model import BodyModel
+from swarmpose.errors import ConfigError
+
+__all__ = ["HardPriors"]
+
+
+@dataclass
+class HardPriors:
+    """Batched constraint test for a body model. ``valid(poses (N, D)) -> (N,) bool``.
+
+    Parameters
+    ----------
+    model : the body model (its limits and ``spec.collision_pairs`` are used).
+    penetration_tolerance : see the module docstring; 0 = any contact of the cones is a collision.
+    spheres_per_cone : samples along ``B``'s axis.
+    check_limits, check_collisions : switch either test off.
+    """
+
+    model: BodyModel
+    penetration_tolerance: float = 0.5
+    spheres_per_cone: int = 8
+    check_limits: bool = True
+    check_collisions: bool = True
+
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.penetration_tolerance < 1.0:
+            raise ConfigError(f"penetration_tolerance must be in [0, 1), got {self.penetration_tolerance}")
+        if self.spheres_per_cone < 2:
+            raise ConfigError(f"spheres_per_cone must be at least 2, got {self.spheres_per_cone}")
+        names = self.model.cone_arrays.names
+        self._pairs = np.array([(names.index(a), names.index(b)) for a, b in self.model.spec.collision_pairs],
+                               dtype=np.int64).reshape(-1, 2)
+        self._frac = np.linspace(0.0, 1.0, self.spheres_per_cone)
+
+    def __call__(self, poses: np.ndarray) -> np.ndarray:
+        return self.valid(poses)
+
+    def valid(self, poses: np.ndarray) -> np.ndarray:
+        """``(N,)`` True where the pose is inside the joint limits and free of inter-penetration."""
+        p = self.model.check_poses(poses)
+        ok = np.ones(p.shape[0], dtype=bool)
+        if self.check_limits:
+            ok &= self.model.within_limits(p)
+        if self.check_collisions and len(self._pairs):
+            ok &= ~self.collisions(p).any(axis=1)
+        return ok
+
+    def collisions(self, poses: np.ndarray) -> np.ndarray:
+        """``(N, P)`` bool: which collision pair (order of ``spec.collision_pairs``) penetrates."""
+        p = self.model.check_poses(poses)
+        cones = self.model.cones(p)
+        tol = 1.0 - self.penetration_tolerance
+        ca = self.model.cone_arrays
+        out = np.zeros((p.shape[0], len(self._pairs)), dtype=bool)
+        f = self._frac
+        for i, (a, b) in enumerate(self._pairs):
+            # spheres of B: centres (N, M, 3), radii (M,) (mean of the two semi-axes)
+            rb = 0.5 * (cones.semi_x[b] + cones.semi_y[b])
+            rho = rb[0] + (rb[1] - rb[0]) * f
+            centres = cones.start[:, b, None] + (cones.end[:, b] - cones.start[:, b])[:, None] * f[None, :, None]
+            # B's centres in A's local frame
+            axis = cones.end[:, a] - cones.start[:, a]
+            length = np.linalg.norm(axis, axis=-1)  # (N,)
+            ez = axis / length[:, None]
+            d = centres - cones.start[:, a, None]
+            z = np.einsum("nmk,nk->nm", d, ez)
+            x = np.einsum("nmk,nk->nm", d, cones.axis_x[:, a])
+            y = np.einsum("nmk,nk->nm", d, cones.axis_y[:, a])
+            s = np.clip(z / length[:, None], 0.0, 1.0)
+            sa = ca.radii[a, 0] * ca.scale[a, 0] + (ca.radii[a, 1] - ca.radii[a, 0]) * ca.scale[a, 0] * s
+            sb = ca.radii[a, 0] * ca.scale[a, 1] + (ca.radii[a, 1] - ca.radii[a, 0]) * ca.scale[a, 1] * s
+            ax_ = tol * (sa + rho)
+            by_ = tol * (sb + rho)
+            inside = ((x / ax_) ** 2 + (y / by_) ** 2 < 1.0) & (z >= 0.0) & (z <= length[:, None])
+            out[:, i] = inside.any(axis=1)
+        return out
+
+    def describe(self, pose: np.ndarray) -> list[str]:
+        """Human-readable reasons why one pose ``(D,)`` is invalid (empty when it is valid)."""
+        p = self.model.check_poses(pose)[:1]
+        reasons = []
+        m = self.model
+        for i, name in enumerate(m.param_names):
+            v = p[0, i]
+            if not m.lower[i] <= v <= m.upper[i]:
+                reasons.append(f"{name} = {np.degrees(v) if m.is_rotation[i] else v:.1f} outside "
+                               f"[{np.degrees(m.lower[i]) if m.is_rotation[i] else m.lower[i]:.1f}, "
+                               f"{np.degrees(m.upper[i]) if m.is_rotation[i] else m.upper[i]:.1f}]")
+        if len(self._pairs):
+            hit = self.collisions(p)[0]
+            for (a, b), h in zip(m.spec.collision_pairs, hit, strict=True):
+                if h:
+                    reasons.append(f"{b} penetrates {a}")
+        return reasons

@@ -1,0 +1,85 @@
+"""Subject measurements from a motion-capture skeleton (limb lengths and offsets of ``balan31``/``full45``).
+
+As HumanEva's limb lengths come from mocap ([HE] ``ComputeLimbLengths``), ours come from the clip's
+skeleton: the BVH rest pose (all channels zero) gives the joint-to-joint vectors. CMU-style rest
+poses face +Z with +Y up and +X on the subject's left, so a rest vector ``(x, y, z)`` becomes the
+model-frame vector ``(z, x, y)`` (x forward, y left, z up), times the clip's mm-per-unit.
+
+* Limbs (thigh, shank, upper arm, forearm) keep the model's canonical direction (straight down in
+  the zero pose) with the measured length.
+* Offsets between branching joints (pelvis→hip, pelvis→thorax, thorax→shoulder, thorax→head top)
+  are the full measured 3-vectors, so the model's zero pose matches the subject's proportions.
+* Cone radii are not in a skeleton: they are the spec's reference sizes (a 1.75 m adult) scaled
+  by the subject's leg length over the reference leg length (documented approximation; the
+  synthesis issue renders a different, detailed body on purpose).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from swarmpose.body.spec import BodySpec, Subject
+from swarmpose.io.bvh import BvhClip
+from swarmpose.io.mocap import MocapClip
+
+__all__ = ["rest_positions", "subject_from_clip"]
+
+
+def rest_positions(bvh: BvhClip) -> tuple[np.ndarray, np.ndarray]:
+    """Rest-pose joint and end-site positions ``(J, 3)`` in source units (all channels zero)."""
+    J = len(bvh.joints)
+    pos = np.zeros((J, 3))
+    ends = np.full((J, 3), np.nan)
+    for j, joint in enumerate(bvh.joints):
+        base = pos[joint.parent] if joint.parent >= 0 else np.zeros(3)
+        pos[j] = base + np.asarray(joint.offset, dtype=float)
+        if joint.end_site is not None:
+            ends[j] = pos[j] + np.asarray(joint.end_site, dtype=float)
+    return pos, ends
+
+
+def _model_vec(v: np.ndarray, mm_per_unit: float) -> tuple[float, float, float]:
+    """CMU rest frame (x left, y up, z forward) → model frame (x forward, y left, z up), in mm."""
+    return (float(v[2] * mm_per_unit), float(v[0] * mm_per_unit), float(v[1] * mm_per_unit))
+
+
+def subject_from_clip(spec: BodySpec, clip: MocapClip) -> Subject:
+    """Measure a subject for ``spec`` (``balan31`` or ``full45`` layout) from a clip's skeleton."""
+    pos, ends = rest_positions(clip.bvh)
+    sm = clip.skeleton_map
+    s = clip.mm_per_unit
+
+    def p(name: str) -> np.ndarray:
+        j = sm.joint(name)
+        return ends[j] if sm.from_end_site[sm.joint_index.index(j)] and name == "head_top" else pos[j]
+
+    def length(a: str, b: str) -> float:
+        return float(np.linalg.norm(p(b) - p(a)) * s)
+
+    offsets: dict[str, tuple[float, float, float]] = {}
+    for side in ("l", "r"):
+        offsets[f"{side}_pelvis_to_hip"] = _model_vec(p(f"{side}_hip") - p("pelvis"), s)
+        offsets[f"{side}_thigh"] = (0.0, 0.0, -length(f"{side}_hip", f"{side}_knee"))
+        offsets[f"{side}_shank"] = (0.0, 0.0, -length(f"{side}_knee", f"{side}_ankle"))
+        offsets[f"{side}_thorax_to_shoulder"] = _model_vec(p(f"{side}_shoulder") - p("thorax"), s)
+        offsets[f"{side}_upper_arm"] = (0.0, 0.0, -length(f"{side}_shoulder", f"{side}_elbow"))
+        offsets[f"{side}_forearm"] = (0.0, 0.0, -length(f"{side}_elbow", f"{side}_wrist"))
+        toe = getattr(sm, f"{side}_toe")
+        offsets[f"{side}_foot"] = _model_vec(pos[toe] - p(f"{side}_ankle"), s)
+        tip = getattr(sm, f"{side}_hand_tip")
+        hand_len = float(np.linalg.norm(np.nan_to_num(ends[tip] - p(f"{side}_wrist"))) * s)
+        offsets[f"{side}_hand"] = (0.0, 0.0, -max(hand_len, 1.0))
+    offsets["spine_to_thorax"] = _model_vec(p("thorax") - p("pelvis"), s)
+    offsets["neck_to_head_top"] = _model_vec(p("head_top") - p("thorax"), s)
+    head = pos[sm.head]
+    offsets["neck_to_head"] = _model_vec(head - p("thorax"), s)
+    offsets["head_to_top"] = _model_vec(p("head_top") - head, s)
+    offsets = {k: v for k, v in offsets.items() if k in spec.default_subject.offsets}
+
+    ref = spec.default_subject.offsets
+    ref_leg = -(ref["l_thigh"][2] + ref["l_shank"][2])
+    leg = -(offsets["l_thigh"][2] + offsets["l_shank"][2])
+    ratio = leg / ref_leg
+    cones = {name: (r0 * ratio, r1 * ratio, sx, sy) for name, (r0, r1, sx, sy) in spec.default_subject.cones.items()}
+    return Subject(name=clip.name, offsets=offsets, cones=cones,
+                   source=f"rest pose of {clip.source_path}; cone radii = reference x {ratio:.3f}")

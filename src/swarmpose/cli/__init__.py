@@ -1,0 +1,1 @@
+"""Command-line interface (``swarmpose``). Each command group lives in its own module."""

@@ -1,0 +1,132 @@
+"""``swarmpose info`` and ``swarmpose ik``: look at a motion-capture clip and its IK floor."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import typer
+
+from swarmpose.cli.app import app
+from swarmpose.cli.common import console, fail_on_user_error, print_json
+
+
+@app.command()
+@fail_on_user_error
+def info(
+    clip: Path = typer.Argument(..., help="A BVH motion-capture file.", exists=False),
+    unit: str = typer.Option(None, help="Source unit (mm, cm, m, inch, cmu) or mm per unit; inferred if omitted."),
+    json_out: bool = typer.Option(False, "--json", help="Print one JSON object instead of a table."),
+) -> None:
+    """Show a clip's frames, frame rate, duration, skeleton and unit scale."""
+    from swarmpose.io.mocap import load_clip
+    from swarmpose.joints import JOINTS15
+
+    c = load_clip(clip, unit_scale=_unit(unit))
+    bvh = c.bvh
+    j15 = c.joints
+    data = {
+        "clip": str(clip),
+        "frames": int(bvh.frames),
+        "frame_rate": float(bvh.frame_rate),
+        "duration_s": float(bvh.duration_s),
+        "joints": len(bvh.joints),
+        "channels": int(bvh.motion.shape[1]),
+        "unit": c.unit_name,
+        "mm_per_unit": float(c.mm_per_unit),
+        "joints15": {
+            name: {"bvh_joint": bvh.joints[c.skeleton_map.joint_index[i]].name,
+                   "start_mm": [round(float(v), 1) for v in j15[0, i]]}
+            for i, name in enumerate(JOINTS15)
+        },
+        "pelvis_path_m": float(np.sum(np.linalg.norm(np.diff(j15[:, 1, :2], axis=0), axis=1)) / 1000.0),
+        "pelvis_height_mm": {"min": float(j15[:, 1, 2].min()), "max": float(j15[:, 1, 2].max())},
+    }
+    if json_out:
+        print_json(data)
+        return
+    from rich.table import Table
+
+    console.print(f"[bold]{clip}[/bold]")
+    console.print(f"  {data['frames']} frames at {data['frame_rate']:g} fps = {data['duration_s']:.3f} s, "
+                  f"{data['joints']} joints / {data['channels']} channels, unit {data['unit']} "
+                  f"({data['mm_per_unit']:.3f} mm per unit)")
+    console.print(f"  pelvis travels {data['pelvis_path_m']:.2f} m; height "
+                  f"{data['pelvis_height_mm']['min']:.0f}-{data['pelvis_height_mm']['max']:.0f} mm")
+    table = Table("joint", "BVH joint", "frame 0 (mm, z up)")
+    for name, d in data["joints15"].items():
+        table.add_row(name, d["bvh_joint"], " ".join(f"{v:8.1f}" for v in d["start_mm"]))
+    console.print(table)
+
+
+@app.command()
+@fail_on_user_error
+def ik(
+    clip: Path = typer.Argument(..., help="A BVH motion-capture file."),
+    model: str = typer.Option("balan31", help="Body model: a shipped name (balan31, full45) or a spec file."),
+    fps: float = typer.Option(60.0, help="Frame rate to resample the clip to before fitting."),
+    out: Path = typer.Option(None, help="Write the fitted parameters, joints and errors here (.npz)."),
+    unit: str = typer.Option(None, help="Source unit or mm per unit; inferred if omitted."),
+    json_out: bool = typer.Option(False, "--json", help="Print one JSON object instead of a summary."),
+) -> None:
+    """Fit the body model to the clip's 15 ground-truth joints frame by frame: the IK floor.
+
+    The IK floor is the mean 3D error (mm, HumanEva 15 joints) of the best fit of the model to the
+    ground truth: the error no tracker using this model can beat (thesis sec. 6.4).
+    """
+    from tqdm import tqdm
+
+    from swarmpose.body.ik import fit_ik
+    from swarmpose.body.model import BodyModel
+    from swarmpose.body.priors import HardPriors
+    from swarmpose.body.spec import load_spec
+    from swarmpose.body.subject import subject_from_clip
+    from swarmpose.io.mocap import load_clip
+    from swarmpose.joints import JOINTS15
+
+    c = load_clip(clip, fps=fps, unit_scale=_unit(unit))
+    spec = load_spec(model)
+    body = BodyModel(spec, subject_from_clip(spec, c), "thesis" if "thesis" in spec.variants else None)
+    with tqdm(total=c.frames, desc=f"IK {c.name}", unit="frame", file=sys.stderr, disable=json_out) as bar:
+        res = fit_ik(body, c.joints, progress=lambda _k: bar.update(1))
+    valid = HardPriors(body).valid(res.params)
+    per_joint = res.joint_error_mm.mean(axis=0)
+    data = {
+        "clip": str(clip),
+        "model": body.name,
+        "fps": float(c.frame_rate),
+        "frames": int(c.frames),
+        "ik_floor_mm": {"mean": res.floor_mean_mm, "max": res.floor_max_mm,
+                        "median": float(np.median(res.frame_error_mm))},
+        "per_joint_mm": {n: float(v) for n, v in zip(JOINTS15, per_joint, strict=True)},
+        "valid_under_hard_priors": float(valid.mean()),
+    }
+    if out is not None:
+        out = Path(out)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        np.savez(out, params=res.params, joints=body.joints15(res.params), gt_joints=c.joints,
+                 joint_error_mm=res.joint_error_mm, frame_times=c.frame_times,
+                 param_names=np.array(body.param_names), world_from_source=c.world_from_source)
+        body.subject.save(out.with_suffix(".subject.json"))
+        data["out"] = str(out)
+    if json_out:
+        print_json(data)
+        return
+    console.print(f"[bold]{c.name}[/bold]: {c.frames} frames at {c.frame_rate:g} fps, model {body.name}")
+    console.print(f"  IK floor: mean {res.floor_mean_mm:.2f} mm, max {res.floor_max_mm:.2f} mm; "
+                  f"{100 * valid.mean():.1f} % of fitted poses satisfy the hard priors")
+    worst = sorted(data["per_joint_mm"].items(), key=lambda kv: -kv[1])[:4]
+    console.print("  largest per-joint errors: " + ", ".join(f"{n} {v:.1f} mm" for n, v in worst))
+    if out is not None:
+        console.print(f"  wrote {out} and {out.with_suffix('.subject.json')}")
+
+
+def _unit(unit: str | None):
+    if unit is None:
+        return None
+    try:
+        return float(unit)
+    except ValueError:
+        return unit
+

@@ -1,0 +1,59 @@
+"""Shared pieces of the CLI: console, JSON output, turning library errors into clear messages."""
+
+from __future__ import annotations
+
+import functools
+import json
+import sys
+from collections.abc import Callable
+from typing import Any, TypeVar
+
+import numpy as np
+import typer
+from rich.console import Console
+
+from swarmpose.errors import SwarmposeError
+
+__all__ = ["console", "err_console", "print_json", "fail_on_user_error", "to_jsonable"]
+
+console = Console()
+err_console = Console(stderr=True)
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+
+def to_jsonable(obj: Any) -> Any:
+    """Numpy scalars/arrays and paths to plain JSON types (NaN/inf become null)."""
+    if isinstance(obj, dict):
+        return {str(k): to_jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [to_jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return to_jsonable(obj.tolist())
+    if isinstance(obj, np.generic):
+        obj = obj.item()
+    if isinstance(obj, float) and not np.isfinite(obj):
+        return None
+    if isinstance(obj, str | int | float | bool) or obj is None:
+        return obj
+    return str(obj)
+
+
+def print_json(data: Any) -> None:
+    """Print exactly one JSON object on stdout (the ``--json`` contract)."""
+    sys.stdout.write(json.dumps(to_jsonable(data), indent=None) + "\n")
+    sys.stdout.flush()
+
+
+def fail_on_user_error(func: F) -> F:
+    """Turn swarmpose's own errors (bad files, bad options) into a one-line message and exit code 2."""
+
+    @functools.wraps(func)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        try:
+            return func(*args, **kwargs)
+        except (SwarmposeError, FileNotFoundError) as exc:
+            err_console.print(f"[bold red]error:[/bold red] {exc}", highlight=False)
+            raise typer.Exit(code=2) from None
+
+    return wrapper  # type: ignore[return-value]

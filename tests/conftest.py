@@ -1,0 +1,23 @@
+"""Shared test fixtures: paths to the shared motion-capture clips."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+SHARED = REPO.parent / "shared"
+MOCAP = SHARED / "data" / "mocap"
+
+
+@pytest.fixture(scope="session")
+def mocap_dir() -> Path:
+    if not MOCAP.is_dir():
+        pytest.skip(f"shared motion capture not found at {MOCAP} (../shared beside the repo)")
+    return MOCAP
+
+
+@pytest.fixture(scope="session")
+def walk_clip_path(mocap_dir: Path) -> Path:
+    return mocap_dir / "cmu_16_16_walk.bvh"
