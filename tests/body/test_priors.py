@@ -74,3 +74,12 @@ def test_checks_can_be_switched_off(model):
     assert HardPriors(model, check_collisions=False).valid(crossed)[0]
     with pytest.raises(ConfigError):
         HardPriors(model, penetration_tolerance=1.0)
+
+
+def test_numba_collisions_match_the_numpy_reference(model, priors):
+    rng = np.random.default_rng(1)
+    poses = pose(model) + rng.normal(scale=0.6, size=(400, model.n_params)) * model.is_rotation
+    fast = priors.collisions(poses)
+    ref = priors.collisions_reference(poses)
+    assert np.array_equal(fast, ref)
+    assert fast.any() and not fast.all()

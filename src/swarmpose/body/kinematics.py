@@ -158,9 +158,23 @@ def _fk_batch(poses, parents, offsets, rot_axis, rot_sign, rot_param, trans_para
         fk_pose_into(poses[n], parents, offsets, rot_axis, rot_sign, rot_param, trans_param, out[n])
 
 
+@nb.njit(cache=True, nogil=True)
+def _fk_batch_serial(poses, parents, offsets, rot_axis, rot_sign, rot_param, trans_param, out):
+    for n in range(poses.shape[0]):
+        fk_pose_into(poses[n], parents, offsets, rot_axis, rot_sign, rot_param, trans_param, out[n])
+
+
+# Below this batch size one thread is faster than waking the pool (about 1 us per pose).
+PARALLEL_MIN_BATCH = 256
+
+
 def forward_kinematics(poses: np.ndarray, kin: KinematicArrays) -> np.ndarray:
-    """Batched FK (numba, parallel over poses). ``poses (N, D)`` → ``world_from_joint (N, J, 3, 4)``."""
+    """Batched FK (numba; parallel over poses for large batches).
+
+    ``poses (N, D)`` → ``world_from_joint (N, J, 3, 4)``.
+    """
     poses = np.ascontiguousarray(poses, dtype=np.float64)
     out = np.empty((poses.shape[0], kin.n_joints, 3, 4))
-    _fk_batch(poses, *kin.as_tuple(), out)
+    kernel = _fk_batch if poses.shape[0] >= PARALLEL_MIN_BATCH else _fk_batch_serial
+    kernel(poses, *kin.as_tuple(), out)
     return out

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba as nb
 import numpy as np
 
 from swarmpose.body.model import BodyModel
@@ -67,7 +68,20 @@ class HardPriors:
         return ok
 
     def collisions(self, poses: np.ndarray) -> np.ndarray:
-        """``(N, P)`` bool: which collision pair (order of ``spec.collision_pairs``) penetrates."""
+        """``(N, P)`` bool: which collision pair (order of ``spec.collision_pairs``) penetrates.
+
+        Numba kernel; :meth:`collisions_reference` is the plain numpy version it is tested against.
+        """
+        p = self.model.check_poses(poses)
+        T = self.model.forward(p)
+        ca = self.model.cone_arrays
+        out = np.zeros((p.shape[0], len(self._pairs)), dtype=np.bool_)
+        _collisions_kernel(T, ca.joint, ca.start, ca.end, ca.radii, ca.scale, self._pairs, self._frac,
+                           1.0 - self.penetration_tolerance, out)
+        return out
+
+    def collisions_reference(self, poses: np.ndarray) -> np.ndarray:
+        """Plain numpy version of :meth:`collisions`."""
         p = self.model.check_poses(poses)
         cones = self.model.cones(p)
         tol = 1.0 - self.penetration_tolerance
@@ -113,3 +127,51 @@ class HardPriors:
                 if h:
                     reasons.append(f"{b} penetrates {a}")
         return reasons
+
+
+@nb.njit(cache=True, nogil=True)
+def _collisions_kernel(T, joint, start, end, radii, scale, pairs, frac, keep, out):
+    """Sphere chain of cone B against the elliptical volume of cone A, for every pose and pair."""
+    N = T.shape[0]
+    M = frac.shape[0]
+    for n in range(N):
+        for i in range(pairs.shape[0]):
+            a = pairs[i, 0]
+            b = pairs[i, 1]
+            Ta = T[n, joint[a]]
+            Tb = T[n, joint[b]]
+            # A's axis in world
+            sa = np.empty(3)
+            ea = np.empty(3)
+            sb = np.empty(3)
+            eb = np.empty(3)
+            for r in range(3):
+                sa[r] = Ta[r, 3] + Ta[r, 0] * start[a, 0] + Ta[r, 1] * start[a, 1] + Ta[r, 2] * start[a, 2]
+                ea[r] = Ta[r, 3] + Ta[r, 0] * end[a, 0] + Ta[r, 1] * end[a, 1] + Ta[r, 2] * end[a, 2]
+                sb[r] = Tb[r, 3] + Tb[r, 0] * start[b, 0] + Tb[r, 1] * start[b, 1] + Tb[r, 2] * start[b, 2]
+                eb[r] = Tb[r, 3] + Tb[r, 0] * end[b, 0] + Tb[r, 1] * end[b, 1] + Tb[r, 2] * end[b, 2]
+            ax = ea - sa
+            length = np.sqrt(ax[0] ** 2 + ax[1] ** 2 + ax[2] ** 2)
+            ez = ax / length
+            rb0 = 0.5 * (radii[b, 0] * scale[b, 0] + radii[b, 0] * scale[b, 1])
+            rb1 = 0.5 * (radii[b, 1] * scale[b, 0] + radii[b, 1] * scale[b, 1])
+            hit = False
+            for m in range(M):
+                f = frac[m]
+                rho = rb0 + (rb1 - rb0) * f
+                d0 = sb[0] + (eb[0] - sb[0]) * f - sa[0]
+                d1 = sb[1] + (eb[1] - sb[1]) * f - sa[1]
+                d2 = sb[2] + (eb[2] - sb[2]) * f - sa[2]
+                z = d0 * ez[0] + d1 * ez[1] + d2 * ez[2]
+                if z < 0.0 or z > length:
+                    continue
+                x = d0 * Ta[0, 0] + d1 * Ta[1, 0] + d2 * Ta[2, 0]
+                y = d0 * Ta[0, 1] + d1 * Ta[1, 1] + d2 * Ta[2, 1]
+                s = min(max(z / length, 0.0), 1.0)
+                ra = radii[a, 0] + (radii[a, 1] - radii[a, 0]) * s
+                axl = keep * (ra * scale[a, 0] + rho)
+                byl = keep * (ra * scale[a, 1] + rho)
+                if (x / axl) ** 2 + (y / byl) ** 2 < 1.0:
+                    hit = True
+                    break
+            out[n, i] = hit

@@ -1,0 +1,33 @@
+"""``swarmpose algorithms``: list every named optimiser configuration (the lead wires it into typer)."""
+
+from __future__ import annotations
+
+import json as _json
+
+from .registry import describe
+
+__all__ = ["algorithms_command"]
+
+
+def algorithms_command(json: bool = False) -> None:
+    """Print the named configurations with their evaluations per frame and paper reference.
+
+    Parameters
+    ----------
+    json : bool
+        Print a JSON list of ``{"name", "evals_per_frame", "reference"}`` instead of a table.
+    """
+    rows = describe()
+    if json:
+        print(_json.dumps(rows, indent=2))
+        return
+    from rich.console import Console
+    from rich.table import Table
+
+    table = Table(title="swarmpose optimisers")
+    table.add_column("name", style="bold")
+    table.add_column("evals/frame", justify="right")
+    table.add_column("reference")
+    for r in rows:
+        table.add_row(r["name"], str(r["evals_per_frame"]), r["reference"])
+    Console().print(table)

@@ -1,0 +1,240 @@
+"""The multi-view sequence format: exact round trip, lazy reading, errors that name the bad file."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from swarmpose.camera import Camera
+from swarmpose.errors import ConfigError, DataError, FormatError, ShapeError
+from swarmpose.io.sequence import (
+    Frame,
+    InMemoryFrames,
+    MarkerData,
+    MultiViewSequence,
+    SequenceWriter,
+    open_sequence,
+    write_sequence,
+)
+
+T, C, H, W = 5, 3, 24, 32
+
+
+def _cameras() -> list[Camera]:
+    return [Camera.look_at(f"V{i}", eye=(3000.0 * np.cos(i), 3000.0 * np.sin(i), 2000.0), target=(0, 0, 900),
+                           f=40.0, width=W, height=H, dist=(-0.05, 0, 0, 0, 0)) for i in range(C)]
+
+
+def _sequence(rng: np.random.Generator, *, markers: bool = True) -> MultiViewSequence:
+    images = rng.integers(0, 256, (T, C, H, W), dtype=np.uint8)
+    masks = rng.integers(0, 2, (T, C, H, W), dtype=np.uint8)
+    sils = rng.integers(0, 2, (T, C, H, W), dtype=np.uint8)
+    md = None
+    if markers:
+        names = ("pelvis", "head_top")
+        pos = [[rng.normal(10, 5, (int(rng.integers(0, 4)), 2)) for _ in range(C)] for _ in range(T)]
+        ids = [[rng.integers(-1, 2, len(p)).astype(np.int16) for p in frame] for frame in pos]
+        md = MarkerData.from_lists(names, pos, ids, rng.normal(size=(T, C, 2, 2)), rng.uniform(size=(T, C, 2)) > 0.3)
+    return MultiViewSequence(
+        cameras=_cameras(), frame_rate=60.0, n_frames=T,
+        reader=InMemoryFrames(image=images, mask=masks, silhouette=sils),
+        frame_times=np.arange(T) / 60.0 + 0.25, backgrounds=rng.integers(0, 256, (C, H, W), dtype=np.uint8),
+        gt_joints=rng.normal(size=(T, 15, 3)) * 500.0, markers=md,
+        world_from_source=np.diag([2.0, 2.0, 2.0, 1.0]), provenance={"seed": 7, "note": "test"},
+        source_clip="/somewhere/clip.bvh")
+
+
+@pytest.fixture()
+def written(tmp_path: Path) -> tuple[MultiViewSequence, Path]:
+    seq = _sequence(np.random.default_rng(0))
+    return seq, write_sequence(tmp_path / "seq", seq)
+
+
+def test_round_trip_identical_arrays(written):
+    seq, path = written
+    with open_sequence(path) as back:
+        assert back.n_frames == T and len(back) == T and back.frame_rate == 60.0
+        assert back.cameras == seq.cameras and back.view_names == ["V0", "V1", "V2"]
+        assert back.image_size == (W, H) and back.streams == ("image", "mask", "silhouette")
+        np.testing.assert_array_equal(back.frame_times, seq.frame_times)
+        np.testing.assert_array_equal(back.backgrounds(), seq.backgrounds())
+        np.testing.assert_array_equal(back.gt_joints, seq.gt_joints)
+        np.testing.assert_array_equal(back.world_from_source, seq.world_from_source)
+        assert back.provenance == {"seed": 7, "note": "test"} and back.source_clip == "/somewhere/clip.bvh"
+        assert back.marker_names == ("pelvis", "head_top")
+        np.testing.assert_array_equal(back.marker_data.projections, seq.marker_data.projections)
+        np.testing.assert_array_equal(back.marker_data.visible, seq.marker_data.visible)
+        for k in range(T):
+            for getter in ("images", "masks", "silhouettes"):
+                a, b = getattr(back, getter)(k), getattr(seq, getter)(k)
+                assert a.dtype == np.uint8 and a.shape == (C, H, W)
+                np.testing.assert_array_equal(a, b)
+            for a, b in zip(back.markers(k), seq.markers(k), strict=True):
+                np.testing.assert_array_equal(a, b)
+            for a, b in zip(back.marker_ids(k), seq.marker_ids(k), strict=True):
+                np.testing.assert_array_equal(a, b)
+        frames = list(back)
+        assert [f.index for f in frames] == list(range(T))
+        assert isinstance(frames[2], Frame) and frames[2].time == pytest.approx(2 / 60 + 0.25)
+        np.testing.assert_array_equal(frames[3].images, seq.images(3))
+
+
+def test_reading_is_lazy(written, tmp_path):
+    """Opening checks the archive directory only; a damaged PNG fails when (and only when) it is read."""
+    _, path = written
+    src = path / "views" / "V1.zip"
+    with zipfile.ZipFile(src) as zin:
+        entries = {n: zin.read(n) for n in zin.namelist()}
+    entries["image/000003.png"] = b"not a png"
+    with zipfile.ZipFile(src, "w") as zout:
+        for n, data in entries.items():
+            zout.writestr(n, data)
+    with open_sequence(path) as seq:
+        seq.images(2)
+        with pytest.raises(FormatError, match=r"V1\.zip.*image/000003\.png"):
+            seq.images(3)
+
+
+def test_without_optional_parts(tmp_path):
+    seq = MultiViewSequence(cameras=_cameras(), frame_rate=25.0, n_frames=2)
+    path = write_sequence(tmp_path / "bare", seq)
+    with open_sequence(path) as back:
+        assert back.images(0) is None and back.masks(1) is None and back.markers(0) is None
+        assert back.backgrounds() is None and back.gt_joints is None and back.streams == ()
+        np.testing.assert_array_equal(back.frame_times, [0.0, 0.04])
+
+
+def test_subsample():
+    seq = MultiViewSequence(cameras=_cameras(), frame_rate=60.0, n_frames=61)
+    np.testing.assert_array_equal(seq.subsample(20), np.arange(0, 61, 3))
+    np.testing.assert_array_equal(seq.subsample(60), np.arange(61))
+    idx = seq.subsample(25)  # non-integer ratio: nearest frames to j / 25 s
+    np.testing.assert_array_equal(idx[:6], [0, 2, 5, 7, 10, 12])
+    with pytest.raises(ConfigError, match="fps"):
+        seq.subsample(120)
+
+
+# ---------------------------------------------------------------------- malformed folders
+def test_missing_sequence_json(written):
+    _, path = written
+    (path / "sequence.json").unlink()
+    with pytest.raises(DataError, match=r"sequence\.json"):
+        open_sequence(path)
+
+
+@pytest.mark.parametrize("name", ["cameras.json", "frames.npz", "backgrounds.npz", "ground_truth.npz",
+                                  "markers.npz", "views/V2.zip"])
+def test_missing_file_is_named(written, name):
+    _, path = written
+    (path / name).unlink()
+    with pytest.raises(DataError, match=name.replace(".", r"\.")):
+        open_sequence(path)
+
+
+@pytest.mark.parametrize("name", ["views/V0.zip", "markers.npz", "ground_truth.npz", "backgrounds.npz",
+                                  "cameras.json", "frames.npz"])
+def test_truncated_file_is_named(written, name):
+    _, path = written
+    f = path / name
+    data = f.read_bytes()
+    f.write_bytes(data[: len(data) // 2])
+    with pytest.raises(FormatError, match=name.split("/")[-1].replace(".", r"\.")):
+        open_sequence(path)
+
+
+def test_missing_frame_entry_is_named(written):
+    _, path = written
+    src = path / "views" / "V2.zip"
+    with zipfile.ZipFile(src) as zin:
+        entries = {n: zin.read(n) for n in zin.namelist() if n != "mask/000004.png"}
+    with zipfile.ZipFile(src, "w") as zout:
+        for n, data in entries.items():
+            zout.writestr(n, data)
+    with pytest.raises(FormatError, match=r"V2\.zip.*mask/000004\.png"):
+        open_sequence(path)
+
+
+def _edit_meta(path: Path, **changes) -> None:
+    meta = json.loads((path / "sequence.json").read_text())
+    for k, v in changes.items():
+        if v is None:
+            del meta[k]
+        else:
+            meta[k] = v
+    (path / "sequence.json").write_text(json.dumps(meta))
+
+
+@pytest.mark.parametrize(("changes", "field"), [
+    ({"version": 2}, "version"),
+    ({"format": "other"}, "format"),
+    ({"n_frames": None}, "n_frames"),
+    ({"image_size": [32]}, "image_size"),
+    ({"streams": ["image", "depth"]}, "streams"),
+    ({"n_frames": 6}, "frame_times"),
+])
+def test_bad_metadata_field_is_named(written, changes, field):
+    _, path = written
+    _edit_meta(path, **changes)
+    with pytest.raises(FormatError, match=field) as exc:
+        open_sequence(path)
+    assert "sequence.json" in str(exc.value) or "frames.npz" in str(exc.value)
+
+
+def test_wrong_array_shape_is_named(written):
+    _, path = written
+    np.savez_compressed(path / "ground_truth.npz", joints=np.zeros((T, 14, 3)))
+    with pytest.raises(FormatError, match=r"ground_truth\.npz.*joints"):
+        open_sequence(path)
+
+
+def test_invalid_json(written):
+    _, path = written
+    (path / "sequence.json").write_text('{"format": "swarmpose-sequence",\n "version": }')
+    with pytest.raises(FormatError, match=r"sequence\.json.*line 2"):
+        open_sequence(path)
+
+
+# ---------------------------------------------------------------------- writer guards
+def test_writer_refuses_foreign_folders_and_disorder(tmp_path):
+    foreign = tmp_path / "mine"
+    foreign.mkdir()
+    (foreign / "notes.txt").write_text("keep me")
+    with pytest.raises(DataError, match="not empty"):
+        SequenceWriter(foreign, _cameras(), 60.0, 2)
+    with pytest.raises(DataError, match="holds no sequence"):
+        SequenceWriter(foreign, _cameras(), 60.0, 2, overwrite=True)
+    assert (foreign / "notes.txt").is_file()
+    w = SequenceWriter(tmp_path / "new", _cameras(), 60.0, 2, streams=("image",))
+    img = np.zeros((C, H, W), np.uint8)
+    with pytest.raises(ConfigError, match="in order"):
+        w.write_frame(1, image=img)
+    with pytest.raises(ShapeError, match="expected"):
+        w.write_frame(0, image=img[:, :, :5])
+    w.write_frame(0, image=img)
+    with pytest.raises(DataError, match="1 frames written"):
+        w.finish()
+    assert not (tmp_path / "new" / "sequence.json").exists()
+
+
+def test_overwrite_replaces_a_sequence(written):
+    seq, path = written
+    write_sequence(path, seq, overwrite=True)
+    with open_sequence(path) as back:
+        assert back.n_frames == T
+    shutil.rmtree(path)
+
+
+def test_in_memory_validation():
+    with pytest.raises(ShapeError, match="gt_joints"):
+        MultiViewSequence(cameras=_cameras(), frame_rate=60.0, n_frames=2, gt_joints=np.zeros((3, 15, 3)))
+    with pytest.raises(ConfigError, match="frame_rate"):
+        MultiViewSequence(cameras=_cameras(), frame_rate=0.0, n_frames=2)
+    with pytest.raises(ShapeError, match="uint8"):
+        InMemoryFrames(image=np.zeros((2, C, H, W), np.float32))
+    with pytest.raises(ShapeError, match="sum to"):
+        MarkerData(("a",), np.ones((2, C), np.int64), np.zeros((3, 2)), np.zeros(3, np.int16))

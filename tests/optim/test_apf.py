@@ -1,0 +1,237 @@
+"""Annealed particle filter (Deutscher & Reid 2005): unit behaviour and the paper's toy claims."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from swarmpose.optim import AnnealedParticleFilter, ParticleSet, optimize
+from swarmpose.optim.testfunctions import planar_arm, sphere, two_arms
+
+
+def _run(apf, f, record=None):
+    while not apf.done:
+        x = apf.ask()
+        if record is not None:
+            record(apf, x)
+        apf.tell(f(x))
+    return apf
+
+
+# -- unit behaviour ------------------------------------------------------------------------------------
+def test_each_layer_meets_the_survival_rate_target():
+    rng = np.random.default_rng(0)
+    apf = AnnealedParticleFilter(np.zeros((100, 3)), np.ones(3), 4, rng, alpha=0.3)
+    rates = []
+    while not apf.done:
+        x = apf.ask()
+        s = sphere(x - 0.5)
+        apf.tell(s)
+        rates.append(1.0 / np.sum(apf.weights**2) / 100)  # D/N, eq. 11-12
+    assert np.allclose(rates, 0.3, rtol=1e-6)
+    assert len(apf.betas) == 4 and all(b > 0 for b in apf.betas)
+
+
+def test_scores_are_log_weights_scale_invariant():
+    """beta absorbs any positive scaling of the fitness: same seed, same particles."""
+
+    def asks(scale):
+        apf = AnnealedParticleFilter(np.zeros((50, 2)), np.ones(2), 4, np.random.default_rng(1))
+        out = []
+        _run(apf, lambda x: scale * sphere(x - 1.0) + 3.0, lambda a, x: out.append(x))
+        return out
+
+    for a, b in zip(asks(1.0), asks(250.0), strict=True):
+        assert np.allclose(a, b)
+
+
+def test_estimate_is_weighted_mean_and_carry_is_final_weighted_set():
+    apf = _run(AnnealedParticleFilter(np.zeros((80, 2)), np.ones(2), 3, np.random.default_rng(2)), sphere)
+    assert np.allclose(apf.best.x, apf.weights @ apf.particles)  # eq. 8
+    c = apf.carry()
+    assert isinstance(c, ParticleSet) and np.array_equal(c.particles, apf.particles)
+    assert c.weights.sum() == pytest.approx(1.0)
+    assert apf.best_particle.score >= apf.best.score  # the mean's score is the weighted mean score
+    with pytest.raises(RuntimeError):
+        AnnealedParticleFilter(np.zeros((5, 2)), np.ones(2), 2, np.random.default_rng(0)).carry()
+
+
+def test_next_frame_starts_from_carried_set_plus_b0():
+    """eq. 9: S_{t+1,M} = resampled S_{t,0} + B_0."""
+    rng = np.random.default_rng(3)
+    first = _run(AnnealedParticleFilter.start(np.full(2, 5.0), np.full(2, 0.5), 200, 4, rng), sphere)
+    carried = first.carry()
+    sigma0 = np.array([1e-9, 1e-9])
+    nxt = AnnealedParticleFilter.start(np.zeros(2), sigma0, 200, 2, np.random.default_rng(4), carry=carried)
+    x = nxt.ask()
+    # every new particle sits (up to 1e-9 noise) on a carried particle with positive weight; x0 is ignored
+    d = np.abs(x[:, None, :] - carried.particles[None]).max(axis=2)
+    src = d.argmin(axis=1)
+    assert np.all(d.min(axis=1) < 1e-7)
+    assert np.all(carried.weights[src] > 0)
+    with pytest.raises(ValueError):
+        AnnealedParticleFilter.start(np.zeros(2), sigma0, 100, 2, np.random.default_rng(0), carry=carried)
+
+
+def test_fixed_schedule_shrinks_noise_by_alpha_per_layer():
+    """eq. 13: P after layer l is alpha^l P_0 (flat fitness: pure diffusion)."""
+    sigma0 = np.array([1.0, 2.0])
+    apf = AnnealedParticleFilter(np.zeros((4000, 2)), sigma0, 4, np.random.default_rng(5), diffusion="fixed")
+    stds = []
+
+    def record(a, x):
+        stds.append((x - a.parents).std(axis=0))
+
+    _run(apf, lambda x: np.zeros(len(x)), record)
+    for layer, s in enumerate(stds):  # layer 0: B_0 ~ N(0, P_0)
+        assert np.allclose(s, sigma0 * np.sqrt(0.5**layer), rtol=0.05)
+
+
+def test_adaptive_noise_follows_set_covariance_and_spares_frozen_parameters():
+    sigma0 = np.array([1.0, 0.0, 0.3])
+    apf = AnnealedParticleFilter(np.zeros((300, 3)), sigma0, 3, np.random.default_rng(6), diffusion_scale=0.5)
+    out = []
+
+    def record(a, x):
+        out.append((x.copy(), a.parents.copy()))
+
+    _run(apf, lambda x: -np.abs(x[:, 0] - 0.5), record)
+    for x, _ in out:
+        assert np.all(x[:, 1] == 0.0)  # no spread -> no noise (eq. 18)
+    x, parents = out[1]
+    noise = x - parents
+    assert noise[:, 0].var() == pytest.approx(0.5 * parents[:, 0].var(), rel=0.25)
+    assert noise[:, 2].var() == pytest.approx(0.5 * parents[:, 2].var(), rel=0.25)
+
+
+def test_crossover_fraction_mixes_parents():
+    """eq. 19: a fraction of the new particles take a parameter block from a second weighted draw."""
+    init = np.concatenate([np.zeros((50, 4)), np.ones((50, 4))])
+
+    def mixed(frac):
+        apf = AnnealedParticleFilter(
+            init, np.zeros(4), 2, np.random.default_rng(7), crossover=frac, diffuse_first=False
+        )
+        apf.ask()
+        apf.tell(np.zeros(100))  # flat: uniform weights
+        apf.ask()
+        p = apf.parents
+        return np.mean([len(set(r)) > 1 for r in p])
+
+    assert mixed(0.0) == 0.0
+    assert 0.2 < mixed(0.5) < 0.5  # about half are children, half of those mix a 0 and a 1 parent
+    assert mixed(1.0) > 0.35
+
+
+def test_constraint_violations_get_zero_weight():
+    def constraint(p):
+        return p[:, 0] > 0
+
+    apf = AnnealedParticleFilter(
+        np.zeros((100, 2)), np.ones(2), 3, np.random.default_rng(8), constraint=constraint, max_redraws=0
+    )
+    x = apf.ask()
+    apf.tell(-np.sum((x + 1) ** 2, axis=1))  # the optimum (-1, -1) is invalid
+    assert np.all(apf.weights[~constraint(x)] == 0.0)
+    _run(apf, lambda p: -np.sum((p + 1) ** 2, axis=1))
+    assert apf.best.x[0] > 0
+
+
+def test_budget_and_determinism():
+    def asks(seed):
+        out = []
+        apf = AnnealedParticleFilter.start(
+            np.ones(3), np.ones(3), 40, 5, np.random.default_rng(seed), crossover=0.3
+        )
+        _run(apf, sphere, lambda a, x: out.append(x))
+        return out, apf.evaluations
+
+    a, n = asks(1)
+    b, _ = asks(1)
+    assert n == 200 and len(a) == 5
+    assert all(np.array_equal(x, y) for x, y in zip(a, b, strict=True))
+    res = optimize(
+        AnnealedParticleFilter.start(np.ones(3), np.ones(3), 40, 5, np.random.default_rng(2)), sphere
+    )
+    assert res.evaluations == 200 and res.score > -1.0  # from -3 at the start
+
+
+# -- DR05 toy claims ---------------------------------------------------------------------------------
+def _normalised_variances(diffusion, trials=20, n=200, layers=6, half_width=0.6):
+    """DR05 sec. 6.1: uniform initial set around a 4-link arm; per-layer variance / initial variance."""
+    rng0 = np.random.default_rng(2005)
+    var = np.zeros((trials, layers, 4))
+    for k in range(trials):
+        truth = rng0.uniform(-1.0, 1.0, 4)
+        prob = planar_arm(truth)
+        rng = np.random.default_rng([2005, k])
+        init = truth + rng.uniform(-half_width, half_width, (n, 4))
+        apf = AnnealedParticleFilter(
+            init, np.full(4, half_width / np.sqrt(3)), layers, rng, diffusion=diffusion, diffuse_first=False
+        )
+
+        def record(a, x, k=k):
+            var[k, a.layer] = x.var(axis=0) / (half_width**2 / 3)
+
+        _run(apf, prob, record)
+    return np.median(var, axis=0)
+
+
+@pytest.mark.slow
+def test_dr05_fig12_13_adaptive_diffusion_localises_hierarchically():
+    adaptive = _normalised_variances("adaptive")
+    fixed = _normalised_variances("fixed")
+    # Fig. 13: the variances end ordered by topological dominance, x1 (root) best localised
+    last = adaptive[-1]
+    assert last[0] < last[1] < last[2] < last[3], last
+    assert last[0] < 0.25
+    # ... x1 is localised first: from layer 3 on, its variance is below every other parameter's
+    assert np.all(adaptive[2:, 0] < adaptive[2:, 1:].min(axis=1))
+    # Fig. 12(c) vs (f): after the first diffusion the fixed schedule has wiped out x1's localisation,
+    # noise proportional to the set's variance keeps it
+    assert adaptive[1, 0] < 0.8 * fixed[1, 0], (adaptive[1, 0], fixed[1, 0])
+    assert fixed[1, 0] > 0.95
+
+
+def _track(make, d, n, layers, diffusion, crossover, seed, frames=20, step=0.1):
+    """Track a smoothly moving planar linkage (max step ``step`` rad/frame) with carried particle sets."""
+    r = np.random.default_rng(seed)
+    centre, period, phase = r.uniform(-1, 1, d), r.uniform(20, 40, d), r.uniform(0, 2 * np.pi, d)
+    amp = step * period / (2 * np.pi)
+    traj = np.array([centre + amp * np.sin(2 * np.pi * t / period + phase) for t in range(frames + 1)])
+    prob = make(traj[0])
+    sigma0 = np.full(d, 0.5 * step)  # DR05 sec. 3.1: half the maximum expected movement
+    rng = np.random.default_rng([seed, 99])
+    x, carry, err, ssd = traj[0], None, [], []
+    for t in range(1, frames + 1):
+        p = prob.with_target(traj[t])
+        apf = AnnealedParticleFilter.start(
+            x, sigma0, n, layers, rng, carry=carry, diffusion=diffusion, crossover=crossover
+        )
+        _run(apf, p)
+        x, carry = apf.best.x, apf.carry()
+        err.append(p.joint_error(x[None])[0])
+        ssd.append(p.ssd(x[None])[0])
+    return float(np.mean(err)), float(np.mean(ssd))
+
+
+@pytest.mark.slow
+def test_dr05_adaptive_diffusion_needs_fewer_particles():
+    """DR05 sec. 6.1: "successful tracking with fewer than half the number of particles"."""
+    seeds = range(12)
+    adaptive50 = np.array([_track(planar_arm, 4, 50, 6, "adaptive", 0.0, s, frames=15)[0] for s in seeds])
+    fixed100 = np.array([_track(planar_arm, 4, 100, 6, "fixed", 0.0, s, frames=15)[0] for s in seeds])
+    # half the particles, lower mean tracking error (measured: 0.62x the median with 20 frames)
+    assert np.median(adaptive50) < 0.85 * np.median(fixed100), (np.median(adaptive50), np.median(fixed100))
+    assert np.mean(adaptive50 < fixed100) >= 0.7
+
+
+@pytest.mark.slow
+def test_dr05_fig16_crossover_lowers_error_on_branched_arms():
+    """DR05 Fig. 15-16: two 3-link arms sharing a root are tracked better with crossover."""
+    seeds = range(12)
+    without = np.array([_track(two_arms, 6, 25, 6, "adaptive", 0.0, s, frames=30)[1] for s in seeds])
+    with_x = np.array([_track(two_arms, 6, 25, 6, "adaptive", 0.5, s, frames=30)[1] for s in seeds])
+    # final SSD (Fig. 16's measure), averaged over the frames
+    assert np.median(with_x) < 0.85 * np.median(without), (np.median(with_x), np.median(without))
+    assert np.mean(with_x < without) >= 0.75

@@ -1,0 +1,99 @@
+"""The ask/tell contract: protocol guards, the score rule, the loop."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from swarmpose.errors import ShapeError
+from swarmpose.optim import ConstrictedPSO, optimize
+from swarmpose.optim.base import check_scores, feasibility
+from swarmpose.optim.testfunctions import sphere
+
+
+def _pso(seed: int = 0, **kw) -> ConstrictedPSO:
+    return ConstrictedPSO(np.ones(3), np.ones(3), 5, 4, np.random.default_rng(seed), **kw)
+
+
+def test_smoke_ask_shape_and_dtype():
+    x = _pso().ask()
+    assert x.shape == (5, 3) and x.dtype == np.float64
+
+
+def test_exception_tell_without_ask():
+    with pytest.raises(RuntimeError, match="without a preceding ask"):
+        _pso().tell(np.zeros(5))
+
+
+def test_exception_double_tell_and_double_ask():
+    opt = _pso()
+    opt.ask()
+    with pytest.raises(RuntimeError, match="twice"):
+        opt.ask()
+    opt.tell(np.zeros(5))
+    with pytest.raises(RuntimeError):
+        opt.tell(np.zeros(5))
+
+
+def test_exception_bad_score_shape_names_both_shapes():
+    opt = _pso()
+    opt.ask()
+    with pytest.raises(ShapeError, match=r"\(5,\).*\(4,\)"):
+        opt.tell(np.zeros(4))
+    with pytest.raises(ValueError):  # ShapeError is a ValueError
+        opt.tell(np.zeros((5, 1)))
+    opt.tell(np.zeros(5))  # the failed tells did not consume the ask
+
+
+def test_exception_ask_after_done():
+    opt = _pso()
+    optimize(opt, sphere)
+    assert opt.done
+    with pytest.raises(RuntimeError, match="done"):
+        opt.ask()
+
+
+def test_best_before_tell_raises():
+    with pytest.raises(RuntimeError):
+        _ = _pso().best
+
+
+def test_score_rule_nan_is_invalid_and_plus_inf_rejected():
+    s = check_scores([1.0, np.nan, -np.inf], 3)
+    assert s[0] == 1.0 and s[1] == -np.inf and s[2] == -np.inf
+    with pytest.raises(ValueError, match=r"\+inf"):
+        check_scores([0.0, np.inf], 2)
+
+
+def test_nan_scores_never_become_best():
+    opt = _pso()
+    x = opt.ask()
+    scores = -np.sum(x**2, axis=1)
+    i_best = int(np.argmax(scores))
+    scores[i_best] = np.nan
+    opt.tell(scores)
+    assert not np.allclose(opt.best.x, x[i_best])
+    assert np.isfinite(opt.best.score)
+
+
+def test_optimize_counts_evaluations_and_iterations():
+    seen = []
+    res = optimize(_pso(), sphere, callback=lambda o: seen.append(o.evaluations))
+    assert res.evaluations == 20 and res.iterations == 4
+    assert seen == [5, 10, 15, 20]
+    assert res.score == pytest.approx(sphere(res.x[None])[0])
+
+
+def test_feasibility_bounds_and_constraint_shape_check():
+    x = np.array([[0.0, 0.0], [2.0, 0.0], [0.5, 0.5]])
+    lo, hi = np.full(2, -1.0), np.full(2, 1.0)
+    assert feasibility(x, lo, hi, None).tolist() == [True, False, True]
+    ok = feasibility(x, lo, hi, lambda p: p[:, 1] < 0.2)
+    assert ok.tolist() == [True, False, False]
+    with pytest.raises(ShapeError):
+        feasibility(x, lo, hi, lambda p: np.ones(7, bool))
+
+
+def test_rng_must_be_a_generator():
+    with pytest.raises(TypeError, match="Generator"):
+        ConstrictedPSO(np.ones(2), np.ones(2), 3, 3, 0)  # type: ignore[arg-type]

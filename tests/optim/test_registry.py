@@ -1,0 +1,219 @@
+"""Named configurations: budgets as the papers state them, schedules, frame-rate scaling, determinism."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+
+from swarmpose.errors import ConfigError
+from swarmpose.optim import describe, get, names, optimize, register
+from swarmpose.optim.apf import ParticleSet
+from swarmpose.optim.cli import algorithms_command
+
+from .conftest import make_balan31, make_marker45
+
+# evaluations per frame as the papers state them
+PAPER_BUDGETS = {
+    "sppso": 10 * 20 + 20 * 40,  # Fleischmann 2012, Table 6.1
+    "sppso3": 10 * 20 + 10 * 40 + 10 * 40,  # Fleischmann 2012, Table 6.3
+    "pso-global": 25 * 40,  # Fleischmann 2012, sec. 6.6
+    "hard2": 10 * 20 + 20 * 40,  # Fleischmann 2012, sec. 6.6 (SPPSO with x1-x6 fixed in stage 2)
+    "hpso12": 12 * 10 * 60,  # Fleischmann 2012, sec. 6.6: 7200 evaluations
+    "apf": 200 * 5,  # HumanEva APF, Fleischmann 2012 Table 4.3
+    "apf-dr05": 200 * 10,  # Deutscher & Reid 2005, sec. 3.1 and Fig. 9-10
+    "aapso": 5 * 80 * 10 + 30 * 10,  # Sharifi et al. 2017, sec. 4.2
+    "aapso-fixed": 5 * 80 * 10 + 30 * 10,
+}
+
+
+def _fitness(model):
+    sigma = np.where(np.asarray(model.sigma) > 0, model.sigma, 1.0)
+
+    def f(x):
+        return -np.sum(((x - 0.05) / sigma) ** 2, axis=1)
+
+    return f
+
+
+def test_names_and_describe():
+    assert set(names()) == set(PAPER_BUDGETS)
+    rows = describe()
+    assert [r["name"] for r in rows] == list(names())
+    for r in rows:
+        assert set(r) == {"name", "evals_per_frame", "reference"}
+        assert r["evals_per_frame"] == PAPER_BUDGETS[r["name"]]
+        assert r["reference"]
+
+
+def test_cli_json_and_table(capsys):
+    algorithms_command(json=True)
+    rows = json.loads(capsys.readouterr().out)
+    assert rows == describe()
+    algorithms_command(json=False)
+    out = capsys.readouterr().out
+    assert all(n in out for n in names()) and "7200" in out
+
+
+def test_unknown_name_lists_known_names_and_model_is_required(balan31):
+    with pytest.raises(ConfigError, match="sppso.*apf"):
+        get("nope", model=balan31)
+    with pytest.raises(ConfigError, match="model"):
+        get("sppso", model=None)
+    with pytest.raises(ConfigError, match="fps"):
+        get("sppso", model=balan31, fps=0)
+    with pytest.raises(ConfigError, match="already registered"):
+        register("sppso", lambda m, f: None, reference="x", evals_per_frame=1)
+
+
+@pytest.mark.parametrize("name", sorted(PAPER_BUDGETS))
+@pytest.mark.parametrize("make_model", [make_balan31, make_marker45], ids=["balan31", "marker45"])
+def test_budget_is_exactly_the_papers(name, make_model):
+    """Run every named configuration to done and count the evaluations it asked for."""
+    model = make_model()
+    cfg = get(name, model=model, fps=60)
+    assert cfg.name == name and cfg.evals_per_frame == PAPER_BUDGETS[name]
+    x0 = np.zeros(len(model.param_names))
+    opt = cfg.start(x0, np.random.default_rng(0))
+    f = _fitness(model)
+    counted = 0
+
+    def counting(x):
+        nonlocal counted
+        counted += x.shape[0]
+        assert np.all(x >= model.lower) and np.all(x <= model.upper)
+        assert isinstance(dict(opt.fitness_options), dict)
+        return f(x)
+
+    res = optimize(opt, counting)
+    assert counted == res.evaluations == opt.evaluations == PAPER_BUDGETS[name]
+    assert res.score > f(x0[None])[0] - 1e-9 or name.startswith("apf")
+
+
+@pytest.mark.parametrize("name", sorted(PAPER_BUDGETS))
+def test_same_seed_same_asks(name, balan31):
+    def asks(seed):
+        cfg = get(name, model=balan31, fps=20)
+        opt = cfg.start(np.zeros(31), np.random.default_rng(seed))
+        f = _fitness(balan31)
+        out = []
+        while not opt.done:
+            x = opt.ask()
+            out.append(x)
+            opt.tell(f(x))
+        return out
+
+    a, b, c = asks(11), asks(11), asks(12)
+    assert len(a) == len(b)
+    assert all(np.array_equal(x, y) for x, y in zip(a, b, strict=True))
+    assert not np.array_equal(a[0], c[0])
+
+
+def test_thesis_frame_rate_scaling(balan31):
+    for name in ("sppso", "pso-global", "hpso12", "apf"):
+        s60 = get(name, model=balan31, fps=60).sigma
+        assert np.allclose(s60, balan31.sigma)
+        assert np.allclose(get(name, model=balan31, fps=20).sigma, 3 * balan31.sigma)  # thesis 5.3.2
+    assert np.allclose(get("apf-dr05", model=balan31, fps=60).sigma, 0.5 * balan31.sigma)  # DR05 3.1
+
+
+def test_aapso_generic_sigma_and_frame_rate(balan31):
+    cfg = get("aapso", model=balan31, fps=25)
+    angles = np.setdiff1d(np.arange(31), balan31.group("root_position"))
+    assert np.allclose(cfg.sigma[angles], 0.1)  # Sharifi et al. 3.2
+    assert np.allclose(cfg.sigma[3:6], balan31.sigma[3:6] * 60 / 25)
+    half = get("aapso", model=balan31, fps=12.5)
+    assert np.allclose(half.sigma**2, 2 * cfg.sigma**2)  # P_0 doubled at half the rate (sec. 4.4)
+    as_sigma = get("aapso", model=balan31, fps=12.5, fps_scaling="sigma")
+    assert np.allclose(as_sigma.sigma, 2 * cfg.sigma)
+    assert get("aapso-fixed", model=balan31).adaptive is False and cfg.adaptive is True
+
+
+def test_overrides_and_validation(balan31):
+    cfg = get("apf", model=balan31, n_particles=100)
+    assert cfg.evals_per_frame == 500
+    assert get("apf-dr05", model=balan31, n_particles=400).evals_per_frame == 4000  # DR05 Fig. 8 setting
+    with pytest.raises(ConfigError, match="unknown override"):
+        get("sppso", model=balan31, n_particles=3)
+    with pytest.raises(ConfigError, match="alpha"):
+        get("apf", model=balan31, alpha=1.5)
+    with pytest.raises(ConfigError):
+        get("sppso", model=balan31, c_start=1.9)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        cfg.n_particles = 3  # type: ignore[misc]
+    with pytest.raises(ConfigError):
+        get("sppso", model=balan31).start(np.zeros(31), np.random.default_rng(0), carry=object())
+    with pytest.raises(ValueError):
+        get("sppso", model=balan31).start(np.zeros(30), np.random.default_rng(0))
+
+
+def test_apf_carries_its_particle_set_between_frames(balan31):
+    cfg = get("apf", model=balan31, fps=60, n_particles=50)
+    f = _fitness(balan31)
+    first = cfg.start(np.zeros(31), np.random.default_rng(0))
+    optimize(first, f)
+    carry = first.carry()
+    assert isinstance(carry, ParticleSet) and carry.particles.shape == (50, 31)
+    second = cfg.start(np.full(31, 100.0), np.random.default_rng(1), carry=carry)  # x0 unused with a carry
+    x = second.ask()
+    assert np.abs(x - carry.particles.mean(axis=0)).max() < 10 * balan31.sigma.max()
+
+
+# -- schedules -------------------------------------------------------------------------------------
+def _scale(stage):
+    return stage.effective_scale
+
+
+def test_sppso_and_hard2_schedules(balan31):
+    s1, s2 = get("sppso", model=balan31).stages
+    assert (s1.n_particles, s1.n_iterations, s2.n_particles, s2.n_iterations) == (10, 20, 20, 40)
+    assert np.flatnonzero(s1.active).tolist() == list(range(6))
+    expect = np.ones(31)
+    expect[3:6] = 0.1  # sigma_4..sigma_6 / 10 in stage 2
+    expect[30] = 0.0  # head twist x31 held fixed
+    assert np.allclose(_scale(s2), expect)
+    assert s1.fitness_options["edge_cones"] == "torso" and s2.fitness_options["edge_cones"] == "all"
+    assert s1.fitness_options["edge_top"] and s2.fitness_options["edge_top"]
+    h1, h2 = get("hard2", model=balan31).stages
+    assert np.allclose(_scale(h1), _scale(s1))
+    expect[:6] = 0.0
+    assert np.allclose(_scale(h2), expect)
+    (g,) = get("pso-global", model=balan31).stages
+    assert (g.n_particles, g.n_iterations) == (25, 40) and np.count_nonzero(g.active) == 30
+
+
+def test_sppso3_schedule_table_6_3(balan31):
+    s1, s2, s3 = get("sppso3", model=balan31).stages
+    assert [(s.n_particles, s.n_iterations) for s in (s1, s2, s3)] == [(10, 20), (10, 40), (10, 40)]
+    lower_limbs = [8, 9, 12, 13, 18, 19, 24, 25]  # x9, x10, x13, x14, x19, x20, x25, x26
+    assert sorted(set(range(31)) - set(np.flatnonzero(s2.active))) == sorted(lower_limbs + [30])
+    assert np.allclose(_scale(s2)[3:6], 0.1) and np.allclose(_scale(s2)[:3], 1.0)
+    sc = _scale(s3)
+    assert np.allclose(sc[:6], 0.1)
+    assert np.allclose(sc[lower_limbs], np.sqrt(2))
+    others = sorted(set(range(6, 30)) - set(lower_limbs))
+    assert np.allclose(sc[others], 0.5) and sc[30] == 0
+    assert s2.fitness_options["edge_cones"] == "torso+upper_limbs"
+
+
+def test_hpso12_twelve_hard_partitions(balan31):
+    stages = get("hpso12", model=balan31).stages
+    assert len(stages) == 12 and all((s.n_particles, s.n_iterations) == (10, 60) for s in stages)
+    parts = [set(np.flatnonzero(s.active)) for s in stages]
+    assert sum(len(p) for p in parts) == 30 and set().union(*parts) == set(range(30))
+    assert all(np.allclose(s.sigma_scale[s.active], 1.0) for s in stages)
+    assert parts[0] == {3, 4, 5} and parts[1] == {0, 1, 2} and parts[-1] == {28, 29}
+
+
+def test_aapso_six_soft_stages(balan31):
+    stages = get("aapso", model=balan31).stages
+    assert [(s.n_particles, s.n_iterations) for s in stages] == [(80, 10)] * 5 + [(30, 10)]
+    torso = [0, 1, 2, 3, 4, 5, 26, 27]
+    assert np.flatnonzero(stages[0].active).tolist() == torso
+    for s, group in zip(stages[1:], ["left_arm", "right_arm", "left_leg", "right_leg", "head"], strict=True):
+        sc = _scale(s)
+        assert np.allclose(sc[torso], 0.1)
+        assert np.allclose(sc[balan31.group(group)], 1.0)
+        assert np.count_nonzero(sc) == len(torso) + len(balan31.group(group))

@@ -1,0 +1,118 @@
+"""End to end: a short stretch of the walking clip, synthesised, measured and read back."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from swarmpose.cli.app import app
+from swarmpose.errors import DataError
+from swarmpose.io.sequence import open_sequence
+from swarmpose.synth.synthesize import SynthReport, cached_sequence, synthesize
+
+SHORT_FRAMES = 24  # the short_walk fixture (conftest.py): 24 frames, f_s every 4th frame
+FS_STRIDE = 4
+
+
+def test_report(short_walk: SynthReport):
+    r = short_walk
+    assert r.frames == SHORT_FRAMES and r.views == 4
+    d = r.to_dict()
+    json.dumps(d, allow_nan=False)
+    for key in ("frames", "views", "seconds", "silhouette_iou", "model_fs_at_gt"):
+        assert key in d
+    assert {"min", "mean"} <= set(d["silhouette_iou"]) and "mean" in d["model_fs_at_gt"]
+    assert d["model_fs_at_gt"]["n_frames"] == SHORT_FRAMES // FS_STRIDE
+    assert d["model_fs_at_gt"]["ik_floor_mm"] < 5.0
+
+
+def test_image_silhouettes_match_exact_masks(short_walk: SynthReport):
+    """Acceptance: IoU >= 0.9 on every frame and view (here: a short stretch of the walking clip)."""
+    assert short_walk.iou.shape == (SHORT_FRAMES, 4)
+    assert np.all(short_walk.iou >= 0.9), short_walk.to_dict()["silhouette_iou"]
+
+
+def test_observation_body_is_not_the_tracker_model(short_walk: SynthReport):
+    """Guard: balan31 at its IK pose explains the observed silhouettes well but not perfectly."""
+    fs = short_walk.fs
+    assert fs.shape == (SHORT_FRAMES // FS_STRIDE, 4) and np.all(np.isfinite(fs))
+    assert 0.70 <= fs.mean() <= 0.93, fs.mean()
+
+
+def test_sequence_loads_back(short_walk: SynthReport, walk_clip):
+    with open_sequence(short_walk.path) as seq:
+        assert seq.n_frames == SHORT_FRAMES and seq.view_names == ["BW1", "BW2", "BW3", "BW4"]
+        assert seq.image_size == (644, 484) and seq.frame_rate == 60.0
+        np.testing.assert_array_equal(seq.gt_joints, walk_clip.joints[:SHORT_FRAMES])
+        np.testing.assert_allclose(seq.frame_times, np.arange(SHORT_FRAMES) / 60.0)
+        np.testing.assert_array_equal(seq.world_from_source, walk_clip.world_from_source)
+        assert seq.provenance["seed"] == 3 and seq.provenance["clip"]["name"] == "cmu_16_16_walk"
+        assert seq.provenance["settings"]["markers"]["dropout"] == 0.05
+        img, mask = seq.images(5), seq.masks(5)
+        assert img.shape == (4, 484, 644) and set(np.unique(mask)) == {0, 1}
+        bg = seq.backgrounds()
+        # the person is where the mask is: clearly different from the background there, not elsewhere
+        diff = np.abs(img.astype(int) - bg.astype(int))
+        assert diff[mask == 1].mean() > 30.0 and diff[mask == 0].mean() < 4.0
+        assert 8.0 < seq.markers(5)[0].shape[0] < 20.0
+        assert seq.marker_data.visible.shape == (SHORT_FRAMES, 4, 15)
+
+
+def test_same_seed_same_images(short_walk: SynthReport, walk_clip_path, tmp_path):
+    again = synthesize(walk_clip_path, tmp_path / "again", seed=3, max_frames=2, measure=False, progress=False)
+    other = synthesize(walk_clip_path, tmp_path / "other", seed=4, max_frames=2, measure=False, progress=False)
+    with open_sequence(short_walk.path) as a, open_sequence(again.path) as b, open_sequence(other.path) as c:
+        np.testing.assert_array_equal(a.images(1), b.images(1))
+        np.testing.assert_array_equal(a.markers(1)[2], b.markers(1)[2])
+        assert not np.array_equal(a.images(1), c.images(1))
+        np.testing.assert_array_equal(a.masks(1), c.masks(1))  # geometry does not depend on the seed
+
+
+def test_cached_sequence(walk_clip_path, tmp_path, monkeypatch):
+    import importlib
+
+    mod = importlib.import_module("swarmpose.synth.synthesize")  # the module, not the function
+
+    calls = []
+    real = mod.synthesize
+
+    def counting(*args, **kwargs):
+        calls.append(1)
+        return real(*args, **{**kwargs, "max_frames": 2})
+
+    monkeypatch.setattr(mod, "synthesize", counting)
+    p1 = cached_sequence(walk_clip_path, tmp_path / "cache", fps=30, seed=1, progress=False)
+    p2 = cached_sequence(walk_clip_path, tmp_path / "cache", fps=30, seed=1, progress=False)
+    assert p1 == p2 and len(calls) == 1 and p1.name.startswith("cmu_16_16_walk-30fps-s1-")
+    p3 = cached_sequence(walk_clip_path, tmp_path / "cache", fps=30, seed=2, progress=False)
+    assert p3 != p1 and len(calls) == 2
+    assert [p.name for p in (tmp_path / "cache").iterdir() if p.name.startswith(".")] == []
+    with pytest.raises(DataError, match="no such clip"):
+        cached_sequence(tmp_path / "missing.bvh", tmp_path / "cache")
+
+
+def test_cli_synth_json_and_show(walk_clip_path, short_walk: SynthReport, tmp_path):
+    runner = CliRunner()
+    out = tmp_path / "cli"
+    res = runner.invoke(app, ["synth", str(walk_clip_path), "--out", str(out), "--max-frames", "3",
+                              "--fs-stride", "2", "--seed", "5", "--json"])
+    assert res.exit_code == 0, res.output
+    data = json.loads(res.stdout)  # exactly one JSON object on stdout
+    assert data["frames"] == 3 and data["views"] == 4 and data["seconds"] > 0
+    assert data["silhouette_iou"]["min"] >= 0.9 and data["model_fs_at_gt"]["mean"] is not None
+    assert "synth" in res.stderr  # the progress bar goes to stderr
+    # a second run into the same folder needs --force
+    res = runner.invoke(app, ["synth", str(walk_clip_path), "--out", str(out), "--max-frames", "1", "--json"])
+    assert res.exit_code == 2 and "not empty" in res.stderr and res.stdout == ""
+    png = tmp_path / "sheet.png"
+    res = runner.invoke(app, ["show", str(short_walk.path), "--frame", "7", "--out", str(png)])
+    assert res.exit_code == 0, res.output
+    import cv2
+
+    sheet = cv2.imread(str(png))
+    assert sheet.shape[1] == 3 * 644 and sheet.shape[0] > 4 * 484
+    res = runner.invoke(app, ["show", str(short_walk.path), "--frame", "99"])
+    assert res.exit_code == 2 and "outside" in res.stderr
