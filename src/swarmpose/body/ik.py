@@ -81,6 +81,7 @@ def fit_ik(
     init: np.ndarray | None = None,
     max_nfev: int = 200,
     damping: float = 1.0,
+    rest_weight: float = 0.5,
     progress=None,
 ) -> IKResult:
     """Fit ``model`` to ground-truth joints ``(T, 15, 3)`` (mm) frame by frame.
@@ -92,6 +93,10 @@ def fit_ik(
         ``damping * (x - x_previous)``. They pin parameters the joints cannot see (e.g. the head
         twist, a shoulder twist with a straight elbow) to the previous frame and make the problem
         well conditioned; the bias they add is negligible (a 0.1 rad change costs 0.1 mm).
+    rest_weight : weight (mm per radian) of residuals ``rest_weight * x`` on the joint angles (not the
+        root): among poses that fit the joints equally well (true null spaces such as a trunk twist
+        against opposite clavicle protractions) the one closest to the zero pose wins, so the fit
+        does not drift along them from frame to frame.
     progress : optional callable ``progress(k)`` called after each frame (for progress bars).
     """
     gt = np.asarray(joints15, dtype=np.float64)
@@ -107,6 +112,9 @@ def fit_ik(
     lo_in, hi_in = lo + margin, hi - margin
     eye_h = np.diag(h)
     w = damping * np.where(model.is_rotation, 1.0, 0.01)
+    w_rest = rest_weight * model.is_rotation.astype(float)
+    if "root" in model.groups:
+        w_rest[model.group("root")] = 0.0
 
     params = np.empty((T, D))
     x = initial_root_pose(model, gt[0]) if init is None else np.clip(np.asarray(init, float), lo, hi)
@@ -115,12 +123,12 @@ def fit_ik(
         prev = x.copy()
 
         def residuals(p, target=target, prev=prev):
-            return np.concatenate([model.joints15(p)[0].ravel() - target, w * (p - prev)])
+            return np.concatenate([model.joints15(p)[0].ravel() - target, w * (p - prev), w_rest * p])
 
         def jacobian(p, target=target):
             batch = np.vstack([p[None], p[None] + eye_h])
             j = model.joints15(batch).reshape(D + 1, -1)
-            return np.vstack([((j[1:] - j[0]) / h[:, None]).T, np.diag(w)])
+            return np.vstack([((j[1:] - j[0]) / h[:, None]).T, np.diag(w), np.diag(w_rest)])
 
         # unbounded heading keeps continuity across the ±pi seam; stay strictly inside bounds
         x0 = np.clip(x, lo_in, hi_in)

@@ -1,0 +1,42 @@
+"""``swarmpose compare SUITE``: the papers' comparisons at equal budgets, one command each."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from swarmpose.cli.app import app
+from swarmpose.cli.common import console, fail_on_user_error, print_json
+from swarmpose.cli.demo import DEFAULT_CLIP
+
+
+@app.command()
+@fail_on_user_error
+def compare(
+    suite: str = typer.Argument(..., help="thesis-apf, thesis-partitions, thesis-budget, thesis-swarm, "
+                                          "thesis-fitness or markers."),
+    sources: list[str] = typer.Option(None, "--clip", help="Sequence folders or BVH clips (repeatable); "
+                                                            "default: the shared walking clip."),
+    runs: int = typer.Option(5, min=1, help="Runs per entry."),
+    seed: int = typer.Option(0, help="Seed; run k of every entry draws from SeedSequence([seed, k])."),
+    out: Path = typer.Option(None, help="Output folder (default results/compare/<suite>)."),
+    downsample: int = typer.Option(1, help="Track on images downsampled by 2 or 4."),
+    workers: int = typer.Option(None, help="Parallel local processes (default: one per core)."),
+    scheduler: str = typer.Option(None, help="Dask scheduler address: run the jobs on that cluster instead."),
+    resume: bool = typer.Option(False, help="Continue interrupted runs."),
+    json_out: bool = typer.Option(False, "--json", help="Print one JSON object with the table's rows."),
+) -> None:
+    """Run an experiment suite (entries × clips × runs in parallel) and write a comparison table."""
+    from swarmpose.experiments.run import run_suite
+    from swarmpose.track.runner import resolve_sequence
+
+    seqs = [resolve_sequence(s, progress=not json_out) for s in (sources or [str(DEFAULT_CLIP)])]
+    out = out or Path("results") / "compare" / suite
+    report = run_suite(suite, seqs, out, runs=runs, seed=seed, workers=workers, scheduler=scheduler,
+                       resume=resume, downsample=downsample, progress=not json_out)
+    if json_out:
+        print_json(report)
+        return
+    console.print((out / "comparison.md").read_text())
+    console.print(f"written: {out / 'comparison.md'} and {out / 'comparison.json'}")

@@ -1,0 +1,94 @@
+"""``swarmpose report`` and ``swarmpose export``: plots, overlays and a summary of a results folder;
+the tracked motion as BVH."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from swarmpose.cli.app import app
+from swarmpose.cli.common import console, err_console, fail_on_user_error, print_json
+
+
+@app.command()
+@fail_on_user_error
+def report(
+    results_dir: Annotated[Path, typer.Argument(help="A results folder written by `swarmpose track`.")],
+    video: Annotated[bool, typer.Option("--video", help="Also write the overlays of every frame as a video.")] = False,
+    frames: Annotated[int, typer.Option("--frames", min=0,
+                                        help="Number of overlay images (with the worst frame); 0: none.")] = 4,
+    run: Annotated[int, typer.Option("--run", min=0, help="The run drawn in the overlays and the video.")] = 0,
+    video_format: Annotated[str, typer.Option("--format", help="Video format: gif, or mp4 (needs FFmpeg: the "
+                                                               "'video' extra, or OpenCV's bundled one).")] = "gif",
+    sequence: Annotated[Path | None, typer.Option("--sequence", help="The tracked sequence folder, if it has "
+                                                                     "moved since tracking.")] = None,
+    out: Annotated[Path | None, typer.Option("--out", help="Report folder (default RESULTS_DIR/report).")] = None,
+    json_out: Annotated[bool, typer.Option("--json", help="Print one JSON object with the paths written.")] = False,
+) -> None:
+    """Write a report: error-over-time and per-joint plots, overlay images (and a video), summary.md.
+
+    The error plot shows D per frame of each run, their mean and the IK floor (thesis Fig. 6.5);
+    the overlays draw the tracked cones (left limbs blue, right limbs vermillion, torso/head green)
+    and the ground-truth skeleton (yellow) on every camera view.
+    """
+    from swarmpose.report import make_report
+
+    paths = make_report(results_dir, video=video, overlay_frames=frames, run=run, out_dir=out,
+                        sequence=sequence, video_format=video_format.lower())
+    for note in paths.notes:
+        err_console.print(f"[yellow]note:[/yellow] {note}", highlight=False)
+    if json_out:
+        print_json(paths.to_dict())
+        return
+    console.print(f"[bold]report of {results_dir}[/bold]")
+    console.print(f"  summary  {paths.summary}", highlight=False)
+    for p in paths.figures:
+        console.print(f"  figure   {p}", highlight=False)
+    for p in paths.overlays:
+        console.print(f"  overlay  {p}", highlight=False)
+    if paths.video is not None:
+        console.print(f"  video    {paths.video}", highlight=False)
+
+
+@app.command()
+@fail_on_user_error
+def export(
+    results_dir: Annotated[Path, typer.Argument(help="A results folder written by `swarmpose track`.")],
+    out: Annotated[Path, typer.Option("--out", help="The BVH file to write.")],
+    run: Annotated[int, typer.Option("--run", min=0, help="Which run to export.")] = 0,
+    z_up: Annotated[bool, typer.Option("--z-up", help="Keep the world's Z-up axes (default: Y up, "
+                                                      "(x, z, -y)).")] = False,
+    unit: Annotated[str, typer.Option("--unit", help="Length unit of the file: mm, cm or m.")] = "mm",
+    order: Annotated[str, typer.Option("--order", help="Rotation channel order of every joint (ZXY, XYZ, ...), "
+                                                       "or 'model' for each joint's own axes.")] = "ZXY",
+    json_out: Annotated[bool, typer.Option("--json", help="Print one JSON object instead of a line.")] = False,
+) -> None:
+    """Export a run's tracked motion as a BVH file that animation tools (Blender, MotionBuilder) import.
+
+    The hierarchy is the body model's joint tree with the subject's limb lengths; the frame rate is
+    the tracking rate. Y up by default: a BVH vector is (x, z, -y) of the swarmpose world (Z up, mm).
+    """
+    from swarmpose.errors import ConfigError
+    from swarmpose.export import export_bvh
+    from swarmpose.report.results import load_results
+
+    scales = {"mm": 1.0, "cm": 0.1, "m": 0.001}
+    if unit not in scales:
+        raise ConfigError(f"--unit must be one of {', '.join(scales)}, got {unit!r}")
+    res = load_results(results_dir)
+    r = res.run(run)
+    fps = res.fps
+    if not fps > 0:
+        raise ConfigError(f"{results_dir / 'config.json'}: no tracking frame rate ('fps') recorded")
+    path = export_bvh(res.model, r.params, fps, out, y_up=not z_up, rotation_order=order,
+                      scale=scales[unit])
+    data = {"bvh": str(path), "run": run, "frames": int(r.params.shape[0]), "frame_rate": float(fps),
+            "joints": len(res.model.spec.joints), "axes": "z_up" if z_up else "y_up", "unit": unit,
+            "rotation_order": order}
+    if json_out:
+        print_json(data)
+        return
+    console.print(f"wrote {path}: {data['frames']} frames at {fps:g} fps, {data['joints']} joints "
+                  f"({'Z' if z_up else 'Y'} up, {unit})", highlight=False)

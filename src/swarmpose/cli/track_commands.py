@@ -1,0 +1,67 @@
+"""``swarmpose track``: track a sequence (or a BVH clip, synthesised into a cache) with a named algorithm."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from swarmpose.cli.app import app
+from swarmpose.cli.common import console, fail_on_user_error, print_json
+
+
+@app.command()
+@fail_on_user_error
+def track(
+    source: str = typer.Argument(..., help="A sequence folder, a BVH clip (synthesised once into cache/), "
+                                           "or humaneva:PATH/S1/Walking_1."),
+    algo: str = typer.Option("sppso", help="Algorithm name (see `swarmpose algorithms`)."),
+    fps: float = typer.Option(20.0, help="Tracking frame rate: the sequence is subsampled to it (60, 30, 20, 12...)."),
+    runs: int = typer.Option(1, min=1, help="Independent runs (different random streams)."),
+    seed: int = typer.Option(0, help="Seed; run k draws from SeedSequence([seed, k]) (recorded)."),
+    out: Path = typer.Option(None, help="Results folder (default results/<sequence>-<algo>-<fps>fps)."),
+    resume: bool = typer.Option(False, help="Continue an interrupted run in --out without redoing frames."),
+    model: str = typer.Option("balan31", help="Body model name or spec file."),
+    fitness: str = typer.Option("auto", help="auto, silhouette_edge, deutscher_reid, markers or reprojection."),
+    downsample: int = typer.Option(1, help="Track on images downsampled by 2 or 4 (faster)."),
+    backend: str = typer.Option("numba", help="Fitness backend: numba (default) or reference."),
+    workers: int = typer.Option(None, help="Parallel worker processes (default: one per core, at most --runs)."),
+    scheduler: str = typer.Option(None, help="Run on a Dask cluster at this address (dask.distributed)."),
+    json_out: bool = typer.Option(False, "--json", help="Print one JSON object with the summary."),
+) -> None:
+    """Track 3D motion frame by frame and measure it against the ground truth.
+
+    Writes a results folder: config.json (settings, seeds, versions), ik.npz (the IK floor), and per
+    run run_XXX/ with joints.npz (joints, gt_joints, frame_times, world_from_source), track.npz
+    (parameters, fitness, evaluations, timings per frame) and summary.json.
+    """
+    from swarmpose.track.runner import resolve_sequence, track_runs
+    from swarmpose.track.tracker import TrackConfig
+
+    cfg = TrackConfig(algo=algo, fps=fps, model=model, fitness=fitness, backend=backend,
+                      downsample=downsample, seed=seed)
+    seq = resolve_sequence(source, progress=not json_out)
+    if out is None:
+        out = Path("results") / f"{seq.name}-{algo}-{fps:g}fps"
+    summary = track_runs(seq, cfg, runs, out, resume=resume, workers=workers, scheduler=scheduler,
+                         progress=not json_out)
+    if json_out:
+        print_json(summary)
+        return
+    console.print(f"[bold]{algo}[/bold] on {seq.name} at {fps:g} fps, {runs} run(s), "
+                  f"{summary['evals_per_frame']} evaluations per frame ({summary['fitness']} fitness)")
+    console.print(f"  D_mean {summary['d_mean_mm']:.1f} mm, D_max {summary['d_max_mm']:.1f} mm "
+                  f"(IK floor {summary['ik_floor_mm']:.1f} mm); MMTA {100 * summary['mmta']:.1f} %; "
+                  f"{summary['frames_per_s']:.2f} frames/s")
+    if runs > 1:
+        w = summary["worst"]
+        console.print(f"  worst run {w['run']}: D_mean {w['d_mean_mm']:.1f} mm, D_max {w['d_max_mm']:.1f} mm")
+    console.print(f"  results in {out}/  (make a report: swarmpose report {out})")
+
+
+@app.command()
+def algorithms(json_out: bool = typer.Option(False, "--json", help="Print a JSON list instead of a table.")) -> None:
+    """List every named algorithm with its fitness evaluations per frame and paper reference."""
+    from swarmpose.optim.cli import algorithms_command
+
+    algorithms_command(json=json_out)

@@ -1,0 +1,75 @@
+"""Run an experiment suite: entries × clips × runs as independent jobs, then one comparison table."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from swarmpose.experiments.suites import Entry, suite
+from swarmpose.metrics import aggregate_runs
+from swarmpose.track.runner import Job, _errors_from, run_jobs
+from swarmpose.track.tracker import TrackConfig, config_record, prepare_track
+
+__all__ = ["run_suite", "comparison_table"]
+
+
+def _slug(text: str) -> str:
+    return "".join(c if c.isalnum() or c in "-." else "_" for c in text).strip("_")
+
+
+def run_suite(name: str, sequences: list[Path], out_dir: Path, *, runs: int = 5, seed: int = 0,
+              workers: int | None = None, scheduler: str | None = None, resume: bool = False,
+              downsample: int = 1, progress: bool = True) -> dict[str, Any]:
+    """Run suite ``name`` on the sequences and write ``out_dir/{comparison.json, comparison.md}``."""
+    entries = suite(name)
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    jobs: list[Job] = []
+    cells: list[tuple[Entry, Path, Path, Any]] = []
+    for seq in sequences:
+        for e in entries:
+            cfg = TrackConfig(algo=e.algo, fps=e.fps, fitness=e.fitness, seed=seed, downsample=downsample,
+                              optim_variant=e.variant, fitness_options=e.fitness_options)
+            cell = out_dir / _slug(Path(seq).name) / _slug(e.label)
+            setup = prepare_track(seq, cfg, cell)  # IK floor once per cell, before the workers start
+            cell.mkdir(parents=True, exist_ok=True)
+            (cell / "config.json").write_text(json.dumps(config_record(setup, runs), indent=1) + "\n")
+            cells.append((e, Path(seq), cell, setup))
+            jobs += [Job(str(seq), asdict(cfg), k, str(cell), resume) for k in range(runs)]
+    results = run_jobs(jobs, workers=workers, scheduler=scheduler, progress=progress)
+    rows = []
+    for e, seq, cell, setup in cells:
+        mine = sorted((r for r in results if Path(r["out_dir"]) == cell), key=lambda r: r["run"])
+        agg = aggregate_runs([_errors_from(r) for r in mine])
+        row = {"label": e.label, "algo": e.algo, "fps": e.fps, "variant": e.variant, "fitness": setup.config.fitness_kind,
+               "fitness_options": e.fitness_options, "sequence": seq.name, "runs": len(mine),
+               "evals_per_frame": setup.evals_per_frame, "d_mean_mm": agg["d_mean"], "d_max_mm": agg["d_max"],
+               "d_mean_std_over_runs": agg["d_mean_std_over_runs"], "worst_d_mean_mm": agg["worst"]["d_mean"],
+               "ik_floor_mm": setup.ik_floor_mm, "mmta": agg["mmta"], "mmtp_mm": agg["mmtp"],
+               "frames_per_s": float(np.mean([r["frames_per_s"] for r in mine])), "reference": e.reference,
+               "out_dir": str(cell)}
+        (cell / "summary.json").write_text(json.dumps({**row, "per_run": mine}, indent=1, default=float) + "\n")
+        rows.append(row)
+    report = {"suite": name, "runs": runs, "seed": seed, "rows": rows}
+    (out_dir / "comparison.json").write_text(json.dumps(report, indent=1) + "\n")
+    (out_dir / "comparison.md").write_text(comparison_table(report))
+    return report
+
+
+def comparison_table(report: dict[str, Any]) -> str:
+    lines = [f"# Suite `{report['suite']}` ({report['runs']} runs per entry, seed {report['seed']})", "",
+             "| sequence | entry | eval/frame | D_mean mm (± over runs) | worst run D_mean | D_max mm | IK floor mm "
+             "| MMTA % | frames/s |",
+             "|---|---|---:|---:|---:|---:|---:|---:|---:|"]
+    for r in report["rows"]:
+        lines.append(f"| {r['sequence']} | {r['label']} | {r['evals_per_frame']} | {r['d_mean_mm']:.1f} "
+                     f"± {r['d_mean_std_over_runs']:.1f} | {r['worst_d_mean_mm']:.1f} | {r['d_max_mm']:.1f} "
+                     f"| {r['ik_floor_mm']:.1f} | {100 * r['mmta']:.1f} | {r['frames_per_s']:.2f} |")
+    refs = sorted({r["reference"] for r in report["rows"] if r["reference"]})
+    if refs:
+        lines += ["", "References: " + "; ".join(refs)]
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,140 @@
+"""Experiment suites: the papers' comparisons at equal budgets, each one command (design.md §5).
+
+A suite is data: a list of :class:`Entry` (label, algorithm, frame rate, optimiser variant, fitness
+options). ``swarmpose compare SUITE`` runs every entry × run × clip as independent jobs (local
+processes or Dask), then writes one table. Variants modify a named configuration in a documented,
+budget-explicit way (:func:`apply_variant`); nothing is tuned per suite.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any
+
+from swarmpose.errors import ConfigError
+
+__all__ = ["Entry", "SUITES", "apply_variant", "parse_fitness_options", "suite"]
+
+
+@dataclass(frozen=True)
+class Entry:
+    label: str
+    algo: str
+    fps: float
+    variant: str = ""
+    fitness: str = "auto"
+    fitness_options: str = ""
+    reference: str = ""
+
+
+def _thesis_apf() -> list[Entry]:
+    ref = "Fleischmann 2012, sec. 6.5 (Fig. 6.8, 6.9)"
+    return [Entry(f"{a} {f}fps", a, f, reference=ref) for f in (20.0, 60.0) for a in ("sppso", "apf")]
+
+
+def _thesis_partitions() -> list[Entry]:
+    ref = "Fleischmann 2012, sec. 6.6 (Fig. 6.10-6.14)"
+    return [Entry(f"{a} 20fps", a, 20.0, reference=ref) for a in ("sppso", "hard2", "pso-global", "sppso3", "hpso12")]
+
+
+def _thesis_budget() -> list[Entry]:
+    ref = "Fleischmann 2012, sec. 6.4, Table 6.2"
+    return [Entry(f"sppso {b} eval/frame 60fps", "sppso", 60.0, variant=f"budget={b}", reference=ref)
+            for b in (1000, 2000, 4000)]
+
+
+def _thesis_swarm() -> list[Entry]:
+    ref = "Fleischmann 2012, sec. 6.8, Table 6.4, Fig. 6.16"
+    return [Entry(f"sppso stage 2 {p}x{i} 20fps", "sppso", 20.0, variant=f"stage2={p}x{i}", reference=ref)
+            for p, i in ((2, 400), (10, 80), (20, 40), (40, 20), (400, 2))]
+
+
+def _thesis_fitness() -> list[Entry]:
+    ref = "Fleischmann 2012, sec. 6.10 (Fig. 6.21, 6.22)"
+    return [
+        Entry("sppso f_s + f_e 20fps", "sppso", 20.0, reference=ref),
+        Entry("sppso silhouette only 20fps", "sppso", 20.0, fitness_options="terms=silhouette", reference=ref),
+        Entry("sppso no torso top edge 20fps", "sppso", 20.0, fitness_options="edge_top=false", reference=ref),
+    ]
+
+
+def _markers() -> list[Entry]:
+    ref = "Sharifi et al. 2017, Tables 1, 3, 4, 5, 7, 8"
+    out = [Entry(f"aapso {f:g}fps", "aapso", f, fitness="markers", reference=ref) for f in (25.0, 12.0)]
+    out += [
+        Entry("aapso global 400x10 25fps", "aapso", 25.0, variant="global=400x10", fitness="markers", reference=ref),
+        Entry("aapso hard partitions 25fps", "aapso", 25.0, variant="hard", fitness="markers", reference=ref),
+        Entry("aapso-fixed (non-adaptive) 25fps", "aapso-fixed", 25.0, fitness="markers", reference=ref),
+        Entry("apf 25fps", "apf", 25.0, fitness="markers", reference=ref),
+    ]
+    return out
+
+
+SUITES = {
+    "thesis-apf": _thesis_apf,
+    "thesis-partitions": _thesis_partitions,
+    "thesis-budget": _thesis_budget,
+    "thesis-swarm": _thesis_swarm,
+    "thesis-fitness": _thesis_fitness,
+    "markers": _markers,
+}
+
+
+def suite(name: str) -> list[Entry]:
+    try:
+        return SUITES[name]()
+    except KeyError:
+        raise ConfigError(f"unknown suite {name!r}; known: {', '.join(SUITES)}") from None
+
+
+def parse_fitness_options(text: str) -> dict[str, Any]:
+    """``"terms=silhouette,edge_top=false"`` → ``{"terms": "silhouette", "edge_top": False}``."""
+    out: dict[str, Any] = {}
+    for item in filter(None, (s.strip() for s in text.split(","))):
+        if "=" not in item:
+            raise ConfigError(f"fitness option {item!r} is not key=value")
+        k, v = (s.strip() for s in item.split("=", 1))
+        out[k] = {"true": True, "false": False}.get(v.lower(), v)
+    return out
+
+
+def apply_variant(config: Any, variant: str) -> Any:
+    """Modify a named optimiser configuration; every variant states its budget.
+
+    * ``budget=B`` (SPPSO family): every stage's iterations × B/1000 (thesis 6.4 gives only the
+      totals 1000/2000/4000; scaling iterations keeps the swarm sizes of Table 6.1).
+    * ``stage2=PxI``: the last stage runs P particles × I iterations (thesis 6.8, Table 6.4).
+    * ``global=PxI`` (AAPSO): one stage over all parameters (Sharifi et al. Table 4: 400 × 10).
+    * ``hard``: each stage after the first holds the earlier stages' parameters fixed (σ scale 0)
+      instead of searching them at σ/10 (Sharifi et al. Table 5; thesis 6.6 hard partitioning).
+    """
+    if not variant:
+        return config
+    from swarmpose.optim.staged import Stage
+
+    key, _, value = variant.partition("=")
+    stages = getattr(config, "stages", None)
+    if stages is None:
+        raise ConfigError(f"variant {variant!r} needs a staged configuration, {config.name!r} has no stages")
+    if key == "budget":
+        factor = int(value) / 1000.0
+        if factor * 1000 != int(value) or factor < 1:
+            raise ConfigError(f"budget must be a multiple of 1000, got {value}")
+        new = tuple(dataclasses.replace(s, n_iterations=int(round(s.n_iterations * factor))) for s in stages)
+    elif key == "stage2":
+        p, i = (int(v) for v in value.lower().split("x"))
+        new = (*stages[:-1], dataclasses.replace(stages[-1], n_particles=p, n_iterations=i))
+    elif key == "global":
+        import numpy as np
+
+        p, i = (int(v) for v in value.lower().split("x"))
+        active = np.logical_or.reduce([s.active for s in stages])
+        new = (Stage("global", active, np.ones(active.shape[0]), p, i, dict(stages[0].fitness_options)),)
+    elif key == "hard":
+        first = stages[0].active
+        new = (stages[0],) + tuple(
+            dataclasses.replace(s, active=s.active & ~first, sigma_scale=s.sigma_scale) for s in stages[1:])
+    else:
+        raise ConfigError(f"unknown variant {variant!r} (budget=B, stage2=PxI, global=PxI, hard)")
+    return dataclasses.replace(config, stages=new)

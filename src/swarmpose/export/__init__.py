@@ -1,0 +1,7 @@
+"""Export of tracked motion for other tools: :func:`export_bvh` (Biovision hierarchy)."""
+
+from __future__ import annotations
+
+from swarmpose.export.bvh_export import ROTATION_ORDERS, bvh_axes, euler_from_matrices, export_bvh
+
+__all__ = ["ROTATION_ORDERS", "bvh_axes", "euler_from_matrices", "export_bvh"]

@@ -1,0 +1,89 @@
+"""Error measures of tracked 15-joint motion (design.md §5).
+
+* HumanEva 3D error (Sigal et al. 2010, eq. 3–5; thesis eq. 4.4–4.6): per frame D = mean over the
+  15 joints of the Euclidean distance (mm); D_mean and D_max over the evaluated frames; per joint.
+* MMTA / MMTP (Sharifi et al. 2017, eq. 19–20, after Canton-Ferrer et al.): the share of joints within
+  δ = 100 mm of the ground truth, and the mean distance of those matched joints, averaged over
+  frames; a frame with no joint within δ contributes the penalty distance δ to MMTP (Sharifi l.218).
+  μ and σ per frame are the mean and standard deviation of the joint distances (eq. 19).
+
+All functions take ``(T, 15, 3)`` arrays in mm (HumanEva joint order).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from swarmpose.errors import ShapeError
+from swarmpose.joints import JOINTS15
+
+__all__ = ["TrackErrors", "joint_distances", "track_errors", "aggregate_runs", "MMTA_DELTA_MM"]
+
+MMTA_DELTA_MM = 100.0
+
+
+def joint_distances(estimate: np.ndarray, truth: np.ndarray) -> np.ndarray:
+    """Euclidean distance per frame and joint, ``(T, 15)`` mm."""
+    est = np.asarray(estimate, dtype=np.float64)
+    gt = np.asarray(truth, dtype=np.float64)
+    if est.shape != gt.shape or est.ndim != 3 or est.shape[1:] != (15, 3):
+        raise ShapeError(f"estimate and truth must both be (T, 15, 3); got {est.shape} and {gt.shape}")
+    return np.linalg.norm(est - gt, axis=-1)
+
+
+@dataclass(frozen=True)
+class TrackErrors:
+    """Errors of one tracked run (mm unless noted)."""
+
+    d_per_frame: np.ndarray  # (T,)
+    d_mean: float
+    d_max: float
+    d_std: float
+    per_joint: dict[str, float]
+    mmta: float  # fraction in [0, 1]
+    mmtp: float
+    mu: float  # Sharifi eq. 19, averaged over frames
+    sigma: float
+
+    def summary(self) -> dict[str, object]:
+        d = asdict(self)
+        d.pop("d_per_frame")
+        return d
+
+
+def track_errors(estimate: np.ndarray, truth: np.ndarray, delta_mm: float = MMTA_DELTA_MM) -> TrackErrors:
+    """All error measures of one run; see the module docstring."""
+    dist = joint_distances(estimate, truth)
+    d = dist.mean(axis=1)
+    matched = dist < delta_mm
+    share = matched.mean(axis=1)
+    n_match = matched.sum(axis=1)
+    mmtp_frame = np.where(n_match > 0, np.where(matched, dist, 0.0).sum(axis=1) / np.maximum(n_match, 1), delta_mm)
+    return TrackErrors(
+        d_per_frame=d,
+        d_mean=float(d.mean()),
+        d_max=float(d.max()),
+        d_std=float(d.std()),
+        per_joint={n: float(v) for n, v in zip(JOINTS15, dist.mean(axis=0), strict=True)},
+        mmta=float(share.mean()),
+        mmtp=float(mmtp_frame.mean()),
+        mu=float(dist.mean(axis=1).mean()),
+        sigma=float(dist.std(axis=1).mean()),
+    )
+
+
+def aggregate_runs(runs: Sequence[TrackErrors]) -> dict[str, object]:
+    """Mean over runs of each measure, their spread, and the worst run (highest D_mean)."""
+    if not runs:
+        raise ValueError("no runs to aggregate")
+    keys = ("d_mean", "d_max", "d_std", "mmta", "mmtp", "mu", "sigma")
+    out: dict[str, object] = {k: float(np.mean([getattr(r, k) for r in runs])) for k in keys}
+    out["d_mean_std_over_runs"] = float(np.std([r.d_mean for r in runs]))
+    worst = max(range(len(runs)), key=lambda i: runs[i].d_mean)
+    out["worst"] = {"run": worst, **{k: getattr(runs[worst], k) for k in keys}}
+    out["per_joint"] = {n: float(np.mean([r.per_joint[n] for r in runs])) for n in JOINTS15}
+    out["runs"] = len(runs)
+    return out

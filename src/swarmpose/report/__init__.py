@@ -1,0 +1,145 @@
+"""Reports of a results folder (design.md §1 "report", §6): plots, overlays, video and a summary.
+
+Public API
+----------
+``make_report(results_dir, *, video=False, overlay_frames=4, ...) -> ReportPaths``
+    Everything below into ``RESULTS_DIR/report/`` (what ``swarmpose report`` runs).
+``error_over_time(results_dir) -> Path``
+    D per frame of each run (thin), their mean (thick) and the IK floor (dashed) over time, like
+    thesis Fig. 6.5.
+``per_joint_errors(results_dir) -> Path``
+    Error per joint: mean over runs with best/worst-run whiskers, the IK floor beside.
+``overlays(results_dir, frames=4, run=0) -> list[Path]``
+    PNGs of chosen frames: every view with the estimated cones (left/right/centre in three colours)
+    and the ground-truth skeleton.
+``overlay_video(results_dir, path, run=0, fps=None, fmt="gif" | "mp4") -> Path``
+    The overlays of every frame as an animated GIF or an MP4.
+``write_summary(results_dir) -> Path``
+    ``summary.md``: configuration, error and per-joint tables, figures, versions.
+``load_results(results_dir) -> Results``
+    The folder read into memory (see :mod:`swarmpose.report.results` for the layout).
+
+matplotlib is only imported by the plotting functions (Agg canvas, no window).
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from swarmpose.errors import DataError
+from swarmpose.report.overlay import overlay_video, overlays, render_overlay
+from swarmpose.report.plots import error_over_time, per_joint_errors
+from swarmpose.report.results import Results, RunData, load_results
+from swarmpose.report.summary import write_summary
+
+__all__ = [
+    "ReportPaths",
+    "Results",
+    "RunData",
+    "error_over_time",
+    "load_results",
+    "make_report",
+    "overlay_video",
+    "overlays",
+    "per_joint_errors",
+    "render_overlay",
+    "write_summary",
+]
+
+
+@dataclass
+class ReportPaths:
+    """What :func:`make_report` wrote.
+
+    Attributes
+    ----------
+    summary : pathlib.Path
+        ``summary.md``.
+    figures : list of pathlib.Path
+        The error plots.
+    overlays : list of pathlib.Path
+        Overlay PNGs (empty when the sequence could not be found; see ``notes``).
+    video : pathlib.Path or None
+        The overlay video, if asked for.
+    notes : list of str
+        Parts that were skipped and why.
+    """
+
+    summary: Path
+    figures: list[Path] = field(default_factory=list)
+    overlays: list[Path] = field(default_factory=list)
+    video: Path | None = None
+    notes: list[str] = field(default_factory=list)
+
+    def to_dict(self) -> dict[str, Any]:
+        """``{"summary", "figures", "overlays", "video"}`` with paths as strings (the CLI's ``--json``)."""
+        return {"summary": str(self.summary), "figures": [str(p) for p in self.figures],
+                "overlays": [str(p) for p in self.overlays],
+                "video": None if self.video is None else str(self.video)}
+
+
+def make_report(
+    results_dir: str | os.PathLike[str] | Results,
+    *,
+    video: bool = False,
+    overlay_frames: int = 4,
+    run: int = 0,
+    out_dir: str | os.PathLike[str] | None = None,
+    sequence: str | os.PathLike[str] | None = None,
+    video_format: str = "gif",
+    video_scale: float = 0.5,
+) -> ReportPaths:
+    """Write the whole report of a results folder.
+
+    Parameters
+    ----------
+    results_dir : path-like or Results
+        A folder written by ``swarmpose track``.
+    video : bool, default False
+        Also write the overlays of every frame as a video.
+    overlay_frames : int, default 4
+        Number of overlay PNGs (spread over the sequence, with the worst frame); 0 for none.
+    run : int, default 0
+        The run drawn in the overlays and the video.
+    out_dir : path-like, optional
+        Default ``RESULTS_DIR/report``.
+    sequence : path-like, optional
+        The tracked sequence folder, when ``config.json``'s path no longer points to it.
+    video_format : {"gif", "mp4"}, default "gif"
+    video_scale : float, default 0.5
+        Resize factor of the video pictures.
+
+    Returns
+    -------
+    ReportPaths
+
+    Notes
+    -----
+    Overlays and video need the sequence's images; when the sequence cannot be found they are
+    skipped with a note (in ``ReportPaths.notes`` and in ``summary.md``) and the rest is written.
+    """
+    res = results_dir if isinstance(results_dir, Results) else load_results(results_dir)
+    out = Path(out_dir) if out_dir is not None else res.path / "report"
+    out.mkdir(parents=True, exist_ok=True)
+    figures = [error_over_time(res, out=out / "error_over_time.png"),
+               per_joint_errors(res, out=out / "per_joint_errors.png")]
+    notes: list[str] = []
+    over: list[Path] = []
+    vid: Path | None = None
+    if overlay_frames > 0 or video:
+        try:
+            res.sequence_path(sequence)
+            _ = res.model
+        except DataError as exc:
+            notes.append(f"overlays skipped: {exc}")
+        else:
+            if overlay_frames > 0:
+                over = overlays(res, overlay_frames, run=run, out_dir=out / "overlays", sequence=sequence)
+            if video:
+                vid = overlay_video(res, out / f"overlay_run{run:03d}.{video_format}", run=run,
+                                    fmt=video_format, scale=video_scale, sequence=sequence)
+    summary = write_summary(res, out=out / "summary.md", figures=figures, overlays=over, video=vid, notes=notes)
+    return ReportPaths(summary=summary, figures=figures, overlays=over, video=vid, notes=notes)

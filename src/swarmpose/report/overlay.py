@@ -1,0 +1,475 @@
+"""Overlay images of a tracked run: the estimated cones and the ground truth on the camera views.
+
+Every view of a frame is drawn as a tile: the camera image in grey, each truncated cone of the
+tracked pose filled semi-transparently and outlined (left limbs blue, right limbs vermillion, torso
+and head green; far cones first), and the ground-truth 15-joint skeleton in yellow with a dark
+border. The tiles sit side by side (at most ``columns`` per row) under a title line with the frame
+index, its time and the 3D error D, above a legend (thesis Fig. 6.3/6.6 show such views).
+
+Cone outlines come from :func:`swarmpose.render.project_cones` (the same geometry the fitness
+uses: exact occluding contours of the truncated cones, with lens distortion).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from swarmpose.errors import ConfigError, DataError
+from swarmpose.joints import BONES15
+from swarmpose.report._style import GT_RGB, SIDE_RGB, bgr
+from swarmpose.report.results import Results, as_results
+
+__all__ = ["render_overlay", "overlays", "overlay_video", "choose_frames"]
+
+_FONT = cv2.FONT_HERSHEY_SIMPLEX
+_SHIFT = 4  # sub-pixel bits for cv2 drawing
+_ONE = 1 << _SHIFT
+
+
+def _fixed(pts: np.ndarray) -> np.ndarray:
+    return np.round(np.asarray(pts, dtype=np.float64) * _ONE).astype(np.int32)
+
+
+def _label(img: np.ndarray, text: str, org: tuple[int, int], scale: float = 0.55) -> None:
+    (w, h), base = cv2.getTextSize(text, _FONT, scale, 1)
+    x, y = org
+    cv2.rectangle(img, (x - 3, y - h - 4), (x + w + 3, y + base + 1), (25, 25, 25), -1)
+    cv2.putText(img, text, (x, y), _FONT, scale, (235, 235, 235), 1, cv2.LINE_AA)
+
+
+def _draw_view(tile: np.ndarray, polys: list[np.ndarray], depths: list[float], sides: Sequence[str],
+               gt_uv: np.ndarray | None, gt_ok: np.ndarray | None, alpha: float, line: int) -> None:
+    """Draw cones (far first) and the ground-truth skeleton onto one BGR tile, in place."""
+    for k in np.argsort(-np.asarray(depths)):
+        poly = polys[k]
+        if poly is None:
+            continue
+        colour = bgr(SIDE_RGB.get(sides[k], SIDE_RGB["center"]))
+        pts = _fixed(poly)[None]
+        layer = tile.copy()
+        cv2.fillPoly(layer, pts, colour, cv2.LINE_AA, _SHIFT)
+        cv2.addWeighted(layer, alpha, tile, 1.0 - alpha, 0.0, dst=tile)
+        cv2.polylines(tile, pts, True, colour, line, cv2.LINE_AA, _SHIFT)
+    if gt_uv is None:
+        return
+    gt_col = bgr(GT_RGB)
+    for a, b in BONES15:
+        if gt_ok[a] and gt_ok[b]:
+            p, q = _fixed(gt_uv[a]), _fixed(gt_uv[b])
+            cv2.line(tile, tuple(p), tuple(q), (20, 20, 20), line + 2, cv2.LINE_AA, _SHIFT)
+            cv2.line(tile, tuple(p), tuple(q), gt_col, line, cv2.LINE_AA, _SHIFT)
+    for j in np.flatnonzero(gt_ok):
+        c = tuple(_fixed(gt_uv[j]))
+        cv2.circle(tile, c, (line + 2) * _ONE, (20, 20, 20), -1, cv2.LINE_AA, _SHIFT)
+        cv2.circle(tile, c, (line + 1) * _ONE, gt_col, -1, cv2.LINE_AA, _SHIFT)
+
+
+def _legend(width: int, height: int, scale: float) -> np.ndarray:
+    bar = np.full((height, width, 3), 40, np.uint8)
+    x = 10
+    y = height // 2
+    s = 0.5 * scale
+    items = [(SIDE_RGB["left"], "left limbs"), (SIDE_RGB["right"], "right limbs"),
+             (SIDE_RGB["center"], "torso / head"), (GT_RGB, "ground truth (15 joints)")]
+    for rgb, text in items:
+        sw = max(int(14 * scale), 6)
+        cv2.rectangle(bar, (x, y - sw // 2), (x + sw, y + sw // 2), bgr(rgb), -1)
+        x += sw + 6
+        cv2.putText(bar, text, (x, y + int(5 * scale)), _FONT, s, (230, 230, 230), 1, cv2.LINE_AA)
+        (w, _), _ = cv2.getTextSize(text, _FONT, s, 1)
+        x += w + 22
+    return bar
+
+
+def render_overlay(
+    model,
+    pose: np.ndarray,
+    cameras: Sequence,
+    images: np.ndarray | None,
+    gt_joints: np.ndarray | None = None,
+    *,
+    title: str = "",
+    alpha: float = 0.35,
+    columns: int = 4,
+    scale: float = 1.0,
+    legend: bool = True,
+) -> np.ndarray:
+    """Draw one frame: every view with the model's cones and the ground-truth skeleton.
+
+    Parameters
+    ----------
+    model : BodyModel
+        The tracked body model (its cones' ``side`` picks the colour).
+    pose : numpy.ndarray, shape (D,)
+        The estimated pose.
+    cameras : sequence of Camera
+        ``C`` calibrated cameras (one image size).
+    images : numpy.ndarray of shape (C, H, W) uint8, or None
+        The camera images (a dark background when None).
+    gt_joints : numpy.ndarray of shape (15, 3), optional
+        Ground-truth joints, world mm (:data:`swarmpose.joints.JOINTS15` order).
+    title : str
+        Text of the title line.
+    alpha : float, default 0.35
+        Opacity of the cone fill.
+    columns : int, default 4
+        Views per row.
+    scale : float, default 1.0
+        Resize factor of the whole picture.
+    legend : bool, default True
+        Add the colour legend below the views.
+
+    Returns
+    -------
+    numpy.ndarray, shape (H', W', 3), uint8
+        RGB picture.
+    """
+    from swarmpose.render import project_cones
+
+    cams = list(cameras)
+    C = len(cams)
+    W, H = cams[0].width, cams[0].height
+    if images is not None and np.asarray(images).shape != (C, H, W):
+        raise ConfigError(f"images must be ({C}, {H}, {W}) for the cameras, got {np.shape(images)}")
+    if not 0.0 <= alpha <= 1.0:
+        raise ConfigError(f"alpha must be in [0, 1], got {alpha}")
+    if not scale > 0:
+        raise ConfigError(f"scale must be > 0, got {scale}")
+    pose = model.check_poses(pose)
+    if pose.shape[0] != 1:
+        raise ConfigError(f"render_overlay draws one pose, got {pose.shape[0]}")
+    pc = project_cones(model, pose, cams)
+    sides = model.cone_arrays.sides
+    line = 2 if max(W, H) >= 400 else 1
+    tiles = []
+    for c, cam in enumerate(cams):
+        if images is not None:
+            tile = cv2.cvtColor(np.ascontiguousarray(images[c]), cv2.COLOR_GRAY2BGR)
+        else:
+            tile = np.full((H, W, 3), 30, np.uint8)
+        polys: list[np.ndarray | None] = []
+        depths: list[float] = []
+        for k in range(len(sides)):
+            n = int(pc.n_vertices[0, c, k])
+            if n < 3:
+                polys.append(None)
+                depths.append(0.0)
+                continue
+            polys.append(pc.vertices[0, c, k, :n])
+            depths.append(float(np.nanmean(pc.depth[0, c, k, :n])))
+        gt_uv = gt_ok = None
+        if gt_joints is not None:
+            uv, z = cam.project_with_depth(np.asarray(gt_joints, dtype=np.float64))
+            gt_ok = (z > 1.0) & np.all(np.isfinite(uv), axis=1) & np.all(np.abs(uv) < 1e5, axis=1)
+            gt_uv = np.where(gt_ok[:, None], uv, 0.0)
+        _draw_view(tile, polys, depths, sides, gt_uv, gt_ok, alpha, line)
+        _label(tile, cam.name, (8, 22))
+        tiles.append(tile)
+    cols = max(1, min(int(columns), C))
+    rows = -(-C // cols)
+    gap = 4
+    grid = np.full((rows * H + (rows - 1) * gap, cols * W + (cols - 1) * gap, 3), 60, np.uint8)
+    for i, tile in enumerate(tiles):
+        r, q = divmod(i, cols)
+        grid[r * (H + gap):r * (H + gap) + H, q * (W + gap):q * (W + gap) + W] = tile
+    if scale != 1.0:
+        interp = cv2.INTER_AREA if scale < 1 else cv2.INTER_LINEAR
+        grid = cv2.resize(grid, (max(1, round(grid.shape[1] * scale)), max(1, round(grid.shape[0] * scale))),
+                          interpolation=interp)
+    ts = max(0.45, min(1.0, grid.shape[1] / 1800.0))
+    parts = [grid]
+    if title:
+        head = np.full((int(34 * ts) + 6, grid.shape[1], 3), 25, np.uint8)
+        cv2.putText(head, title, (10, int(24 * ts) + 2), _FONT, 0.75 * ts, (245, 245, 245), 1, cv2.LINE_AA)
+        parts.insert(0, head)
+    if legend:
+        parts.append(_legend(grid.shape[1], int(30 * ts) + 6, ts * 1.4))
+    out = np.vstack(parts)
+    return cv2.cvtColor(out, cv2.COLOR_BGR2RGB)
+
+
+def choose_frames(results: Results, count: int, run: int = 0) -> np.ndarray:
+    """Positions (into the processed frames) of ``count`` frames: evenly spread, with the worst one.
+
+    Parameters
+    ----------
+    results : Results
+    count : int
+        How many frames (at least 1).
+    run : int
+        Run whose worst frame (highest D) is included.
+
+    Returns
+    -------
+    numpy.ndarray, shape (<= count,), int64
+        Sorted, unique positions ``0 .. T-1``.
+    """
+    if count < 1:
+        raise ConfigError(f"the number of overlay frames must be at least 1, got {count}")
+    T = len(results.frame_indices)
+    if count >= T:
+        return np.arange(T, dtype=np.int64)
+    d = results.run(run).d_per_frame
+    pos = {int(i) for i in np.round(np.linspace(0, T - 1, count - 1))} if count > 1 else set()
+    for i in np.argsort(-d, kind="stable"):  # the worst frame, then the next worst until full
+        if len(pos) >= count:
+            break
+        pos.add(int(i))
+    return np.array(sorted(pos), dtype=np.int64)
+
+
+def _positions(res: Results, frames: int | Sequence[int] | None, run: int) -> np.ndarray:
+    if frames is None:
+        frames = 4
+    if isinstance(frames, int | np.integer):
+        return choose_frames(res, int(frames), run)
+    fi = res.frame_indices
+    out = []
+    for f in frames:
+        i = int(np.searchsorted(fi, int(f)))
+        if i >= len(fi) or fi[i] != int(f):
+            step = f" every {int(fi[1] - fi[0])}" if len(fi) > 1 else ""
+            raise ConfigError(f"frame {f} was not tracked (tracked: sequence frames {int(fi[0])}..{int(fi[-1])}"
+                              f"{step})")
+        out.append(i)
+    return np.array(out, dtype=np.int64)
+
+
+def _title(res: Results, run: int, i: int) -> str:
+    r = res.run(run)
+    algo = str(res.config.get("algo", "")).upper()
+    fps = f" {res.fps:g} fps" if res.fps else ""
+    return (f"frame {int(r.frame_indices[i])}   t = {float(r.frame_times[i]):.3f} s   "
+            f"D = {float(r.d_per_frame[i]):.1f} mm      {algo}{fps}, run {run}")
+
+
+class _FrameSource:
+    """Images per processed frame from the sequence (or none when it cannot be opened)."""
+
+    def __init__(self, res: Results, sequence: str | os.PathLike[str] | None):
+        self.seq = res.open_sequence(sequence)
+        self.cameras = list(self.seq.cameras)
+        self.backgrounds = self.seq.backgrounds()
+
+    def images(self, k: int) -> np.ndarray | None:
+        img = self.seq.images(k)
+        return img if img is not None else self.backgrounds
+
+    def close(self) -> None:
+        self.seq.close()
+
+
+def overlays(
+    results: str | os.PathLike[str] | Results,
+    frames: int | Sequence[int] | None = 4,
+    *,
+    run: int = 0,
+    out_dir: str | os.PathLike[str] | None = None,
+    sequence: str | os.PathLike[str] | None = None,
+    scale: float = 1.0,
+    alpha: float = 0.35,
+) -> list[Path]:
+    """Write one overlay PNG per chosen frame (all views side by side; see :func:`render_overlay`).
+
+    Parameters
+    ----------
+    results : path-like or Results
+    frames : int or sequence of int, default 4
+        A number: that many frames spread over the sequence, including the run's worst frame. A
+        sequence: those sequence frame indices (they must have been tracked).
+    run : int, default 0
+        The run to draw.
+    out_dir : path-like, optional
+        Default ``RESULTS_DIR/report/overlays``.
+    sequence : path-like, optional
+        The sequence folder, when ``config.json``'s path no longer points to it.
+    scale, alpha : see :func:`render_overlay`.
+
+    Returns
+    -------
+    list of pathlib.Path
+        ``overlay_run000_frame000123.png`` files, in frame order.
+
+    Raises
+    ------
+    DataError
+        The sequence folder or the subject is missing.
+    ConfigError
+        A requested frame was not tracked, or no such run.
+    """
+    res = as_results(results)
+    r = res.run(run)
+    pos = _positions(res, frames, run)
+    out = Path(out_dir) if out_dir is not None else res.path / "report" / "overlays"
+    out.mkdir(parents=True, exist_ok=True)
+    model = res.model
+    src = _FrameSource(res, sequence)
+    paths = []
+    try:
+        for i in pos:
+            k = int(r.frame_indices[i])
+            rgb = render_overlay(model, r.params[i], src.cameras, src.images(k), r.gt_joints[i],
+                                 title=_title(res, run, int(i)), scale=scale, alpha=alpha)
+            p = out / f"overlay_run{run:03d}_frame{k:06d}.png"
+            if not cv2.imwrite(str(p), cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR)):
+                raise DataError(f"{p}: cannot write the PNG")
+            paths.append(p)
+    finally:
+        src.close()
+    return paths
+
+
+def _pad16(img: np.ndarray) -> np.ndarray:
+    H, W = img.shape[:2]
+    H2, W2 = -(-H // 16) * 16, -(-W // 16) * 16
+    if (H2, W2) == (H, W):
+        return img
+    out = np.zeros((H2, W2, 3), np.uint8)
+    out[:H, :W] = img
+    return out
+
+
+def video_backends() -> dict[str, bool]:
+    """Which video writers work here: ``{"gif": ..., "mp4-imageio-ffmpeg": ..., "mp4-opencv": ...}``."""
+    try:
+        import imageio_ffmpeg  # noqa: F401
+
+        has_ffmpeg = True
+    except ImportError:
+        has_ffmpeg = False
+    return {"gif": True, "mp4-imageio-ffmpeg": has_ffmpeg, "mp4-opencv": _opencv_mp4_ok()}
+
+
+def _opencv_mp4_ok() -> bool:
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as d:
+        w = cv2.VideoWriter(str(Path(d) / "t.mp4"), cv2.VideoWriter_fourcc(*"mp4v"), 10.0, (32, 32))
+        ok = w.isOpened()
+        w.release()
+    return bool(ok)
+
+
+class _Mp4Writer:
+    def __init__(self, path: Path, fps: float):
+        self.path, self.fps = path, fps
+        self.writer = None
+        self.kind = None
+
+    def append(self, rgb: np.ndarray) -> None:
+        rgb = _pad16(rgb)
+        if self.writer is None:
+            try:
+                import imageio.v2 as iio2
+                import imageio_ffmpeg  # noqa: F401
+
+                self.writer = iio2.get_writer(str(self.path), format="FFMPEG", mode="I", fps=self.fps,
+                                              codec="libx264", quality=7, macro_block_size=16)
+                self.kind = "imageio"
+            except ImportError:
+                H, W = rgb.shape[:2]
+                w = cv2.VideoWriter(str(self.path), cv2.VideoWriter_fourcc(*"mp4v"), float(self.fps), (W, H))
+                if not w.isOpened():
+                    raise ConfigError("MP4 needs ffmpeg: install the 'video' extra (pip install "
+                                      "'swarmpose[video]') or write a GIF") from None
+                self.writer = w
+                self.kind = "opencv"
+        if self.kind == "imageio":
+            self.writer.append_data(rgb)
+        else:
+            self.writer.write(cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR))
+
+    def close(self) -> None:
+        if self.writer is not None:
+            (self.writer.close if self.kind == "imageio" else self.writer.release)()
+
+
+def overlay_video(
+    results: str | os.PathLike[str] | Results,
+    path: str | os.PathLike[str] | None = None,
+    *,
+    run: int = 0,
+    fps: float | None = None,
+    fmt: str | None = None,
+    every: int = 1,
+    scale: float = 0.5,
+    sequence: str | os.PathLike[str] | None = None,
+    alpha: float = 0.35,
+) -> Path:
+    """Write the overlays of every processed frame as an animated GIF or an MP4 video.
+
+    Parameters
+    ----------
+    results : path-like or Results
+    path : path-like, optional
+        Output file; default ``RESULTS_DIR/report/overlay_run000.gif`` (or ``.mp4``).
+    run : int, default 0
+    fps : float, optional
+        Playback rate; default the tracking rate (real time).
+    fmt : {"gif", "mp4"}, optional
+        Default from ``path``'s suffix, else ``"gif"``. GIF is written with Pillow (frames are kept in
+        memory as 256-colour images: fine for short clips; use ``every``/``scale`` for long ones);
+        MP4 (H.264) uses imageio-ffmpeg (the ``video`` extra) when installed, else OpenCV's
+        bundled FFmpeg (MPEG-4 part 2).
+    every : int, default 1
+        Use every ``every``-th processed frame.
+    scale : float, default 0.5
+        Resize factor of the pictures.
+    sequence : path-like, optional
+        The sequence folder, when ``config.json``'s path no longer points to it.
+    alpha : float
+        Cone fill opacity.
+
+    Returns
+    -------
+    pathlib.Path
+        The file written.
+
+    Raises
+    ------
+    ConfigError
+        Unknown format, or MP4 without any FFmpeg.
+    """
+    from PIL import Image
+
+    res = as_results(results)
+    r = res.run(run)
+    if path is not None and fmt is None:
+        fmt = Path(path).suffix.lower().lstrip(".") or "gif"
+    fmt = (fmt or "gif").lower()
+    if fmt not in ("gif", "mp4"):
+        raise ConfigError(f"unknown video format {fmt!r} (known: gif, mp4)")
+    if every < 1:
+        raise ConfigError(f"every must be >= 1, got {every}")
+    out = Path(path) if path is not None else res.path / "report" / f"overlay_run{run:03d}.{fmt}"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    rate = float(fps) if fps else (res.fps / every if res.fps else 10.0)
+    if not rate > 0:
+        raise ConfigError(f"fps must be > 0, got {fps}")
+    model = res.model
+    src = _FrameSource(res, sequence)
+    gif_frames: list = []
+    mp4 = _Mp4Writer(out, rate) if fmt == "mp4" else None
+    try:
+        for i in range(0, len(r.frame_indices), every):
+            k = int(r.frame_indices[i])
+            rgb = render_overlay(model, r.params[i], src.cameras, src.images(k), r.gt_joints[i],
+                                 title=_title(res, run, i), scale=scale, alpha=alpha)
+            if mp4 is not None:
+                mp4.append(rgb)
+            else:
+                gif_frames.append(Image.fromarray(rgb).quantize(colors=256, method=Image.Quantize.FASTOCTREE))
+    finally:
+        src.close()
+        if mp4 is not None:
+            mp4.close()
+    if mp4 is None:
+        ms = max(20, int(round(1000.0 / rate)))
+        gif_frames[0].save(out, save_all=True, append_images=gif_frames[1:], duration=ms, loop=0,
+                           optimize=False, disposal=1)
+    return out

@@ -1,0 +1,244 @@
+"""The Markdown summary of a results folder: configuration, error tables, figures, versions."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from swarmpose.joints import JOINTS15
+from swarmpose.metrics import MMTA_DELTA_MM, track_errors
+from swarmpose.report.results import Results, as_results
+
+__all__ = ["write_summary", "run_rows"]
+
+
+def _f(x: Any, fmt: str = ".1f") -> str:
+    """A number for a table cell; a dash when missing or not finite."""
+    if x is None:
+        return "–"
+    try:
+        v = float(x)
+    except (TypeError, ValueError):
+        return str(x)
+    return format(v, fmt) if np.isfinite(v) else "–"
+
+
+def _pct(x: Any) -> str:
+    return "–" if x is None else _f(100.0 * float(x))
+
+
+def run_rows(res: Results) -> list[dict[str, Any]]:
+    """Per-run errors: ``run, d_mean_mm, d_max_mm, mmta, mmtp_mm, frames_per_s``.
+
+    Taken from the run's ``summary.json`` (then the folder's ``summary.json``) where stored, and
+    recomputed from the run's joints (:func:`swarmpose.metrics.track_errors`) where not.
+    """
+    stored = {int(r["run"]): r for r in res.summary.get("per_run", []) if "run" in r}
+    rows = []
+    for r in res.runs:
+        s, agg = r.summary, stored.get(r.run, {})
+        e = None
+
+        def get(run_key: str, agg_key: str, attr: str, s=s, agg=agg, r=r) -> float:
+            nonlocal e
+            if run_key in s and s[run_key] is not None:
+                return float(s[run_key])
+            if agg_key in agg and agg[agg_key] is not None:
+                return float(agg[agg_key])
+            if e is None:
+                e = track_errors(r.joints, r.gt_joints)
+            return float(getattr(e, attr))
+
+        fps = s.get("frames_per_s", agg.get("frames_per_s"))
+        rows.append({
+            "run": r.run,
+            "d_mean_mm": get("d_mean", "d_mean_mm", "d_mean"),
+            "d_max_mm": get("d_max", "d_max_mm", "d_max"),
+            "mmta": get("mmta", "mmta", "mmta"),
+            "mmtp_mm": get("mmtp", "mmtp_mm", "mmtp"),
+            "frames_per_s": float(fps) if fps is not None else r.frames_per_s,
+        })
+    return rows
+
+
+def _rel(path: Path, base: Path) -> str:
+    return Path(os.path.relpath(path, base)).as_posix()
+
+
+def _table(header: Sequence[str], rows: Sequence[Sequence[str]], align: str | None = None) -> list[str]:
+    align = align or ("l" + "r" * (len(header) - 1))
+    sep = ["---:" if a == "r" else ":---" for a in align]
+    out = ["| " + " | ".join(header) + " |", "| " + " | ".join(sep) + " |"]
+    out += ["| " + " | ".join(r) + " |" for r in rows]
+    return out
+
+
+def _reproduce(cfg: dict[str, Any]) -> str | None:
+    if not cfg.get("sequence") or not cfg.get("algo"):
+        return None
+    parts = ["swarmpose track", str(cfg["sequence"]), f"--algo {cfg['algo']}"]
+    for key, opt in (("fps", "--fps"), ("runs", "--runs"), ("seed", "--seed"), ("model", "--model"),
+                     ("fitness", "--fitness"), ("downsample", "--downsample"), ("backend", "--backend")):
+        if cfg.get(key) is not None:
+            v = cfg[key]
+            parts.append(f"{opt} {v:g}" if isinstance(v, float) else f"{opt} {v}")
+    return " ".join(parts)
+
+
+def write_summary(
+    results: str | os.PathLike[str] | Results,
+    *,
+    out: str | os.PathLike[str] | None = None,
+    figures: Sequence[str | os.PathLike[str]] | None = None,
+    overlays: Sequence[str | os.PathLike[str]] | None = None,
+    video: str | os.PathLike[str] | None = None,
+    notes: Sequence[str] = (),
+) -> Path:
+    """Write ``summary.md``: configuration, error table, per-joint table, figures and versions.
+
+    The error table has one row per run (D_mean, D_max, MMTA, MMTP, frames/s), the mean over runs
+    (the numbers of ``summary.json``), the worst run (highest D_mean) and the IK floor (the error of
+    the model's best fit to the ground truth). Figures are embedded by paths relative to the
+    summary, so the report folder can be moved or published as a whole.
+
+    Parameters
+    ----------
+    results : path-like or Results
+    out : path-like, optional
+        Default ``RESULTS_DIR/report/summary.md``.
+    figures, overlays : sequence of path-like, optional
+        Images to embed; default: the plots and overlay PNGs already in the report folder.
+    video : path-like, optional
+        An overlay video to link.
+    notes : sequence of str
+        Extra remarks (e.g. why overlays were skipped), listed under the title.
+
+    Returns
+    -------
+    pathlib.Path
+        The Markdown file written.
+    """
+    res = as_results(results)
+    out_path = Path(out) if out is not None else res.path / "report" / "summary.md"
+    base = out_path.parent
+    base.mkdir(parents=True, exist_ok=True)
+    if figures is None:
+        figures = [p for p in (base / "error_over_time.png", base / "per_joint_errors.png") if p.is_file()]
+    if overlays is None:
+        overlays = sorted((base / "overlays").glob("overlay_*.png"))
+    cfg, s = res.config, res.summary
+    rows = run_rows(res)
+    T = len(res.frame_indices)
+    algo = str(cfg.get("algo") or s.get("algo") or "?")
+    fps = res.fps
+    evals = cfg.get("evals_per_frame") or s.get("evals_per_frame")
+
+    L: list[str] = [f"# Tracking report: {res.name}", ""]
+    head = f"**{algo.upper()}**"
+    if fps:
+        head += f" at {fps:g} fps"
+    if evals:
+        head += f", {evals} fitness evaluations per frame"
+    head += f", {len(res.runs)} run(s) over {T} frames"
+    if cfg.get("sequence"):
+        head += f" of `{cfg['sequence']}`"
+    L += [head + ".", ""]
+    for n in list(notes) + [f"run not included: {x}" for x in res.skipped]:
+        L.append(f"> Note: {n}")
+    if notes or res.skipped:
+        L.append("")
+
+    # ---------------------------------------------------------------- configuration
+    fi = res.frame_indices
+    cfg_rows = [
+        ("algorithm", algo),
+        ("tracking frame rate", f"{fps:g} fps" if fps else "–"),
+        ("fitness evaluations per frame", str(evals) if evals else "–"),
+        ("fitness", str(cfg.get("fitness_kind") or cfg.get("fitness") or s.get("fitness") or "–")),
+        ("body model", f"{cfg.get('model', '–')}" + (f" (variant {cfg['variant']})" if cfg.get("variant") else "")),
+        ("fitness backend", str(cfg.get("backend", "–"))),
+        ("image downsampling", str(cfg.get("downsample", "–"))),
+        ("seed", f"{cfg['seed']} (run k draws from SeedSequence([{cfg['seed']}, k]))" if "seed" in cfg else "–"),
+        ("runs", f"{len(res.runs)}" + (f" of {cfg['runs']}" if cfg.get("runs") not in (None, len(res.runs)) else "")),
+        ("frames", f"{T} (sequence frames {int(fi[0])}–{int(fi[-1])})" if T else "0"),
+        ("sequence", f"`{cfg['sequence']}`" if cfg.get("sequence") else "–"),
+        ("created", str(cfg.get("created", "–"))),
+    ]
+    L += ["## Configuration", ""] + _table(["setting", "value"], cfg_rows, "ll") + [""]
+    cmd = _reproduce(cfg)
+    if cmd:
+        L += ["Reproduce with:", "", "```", cmd, "```", ""]
+
+    # ---------------------------------------------------------------- errors
+    L += ["## Errors", "",
+          "D is the 3D error of a frame: the mean distance (mm) of the 15 HumanEva joints to the ground "
+          "truth; D_mean and D_max are its mean and maximum over the frames. MMTA is the share of joints "
+          f"within {MMTA_DELTA_MM:g} mm of the ground truth and MMTP their mean distance (Sharifi et al.). "
+          "The IK floor is the error of the model's best fit to the ground truth: no tracker using this "
+          "model can do better (thesis sec. 6.4).", ""]
+    trows = [[str(r["run"]), _f(r["d_mean_mm"]), _f(r["d_max_mm"]), _pct(r["mmta"]), _f(r["mmtp_mm"]),
+              _f(r["frames_per_s"], ".2f")] for r in rows]
+    trows.append(["**mean**", _f(s.get("d_mean_mm")), _f(s.get("d_max_mm")), _pct(s.get("mmta")),
+                  _f(s.get("mmtp_mm")), _f(s.get("frames_per_s"), ".2f")])
+    if len(rows) > 1:
+        w = s.get("worst") or {}
+        wr = next((r for r in rows if r["run"] == w.get("run")), max(rows, key=lambda r: r["d_mean_mm"]))
+        trows.append([f"**worst** (run {wr['run']})", _f(w.get("d_mean_mm", wr["d_mean_mm"])),
+                      _f(w.get("d_max_mm", wr["d_max_mm"])), _pct(w.get("mmta", wr["mmta"])),
+                      _f(wr["mmtp_mm"]), _f(wr["frames_per_s"], ".2f")])
+        spread = s.get("d_mean_std_over_runs")
+        if spread is None:
+            spread = float(np.std([r["d_mean_mm"] for r in rows]))
+    ik = res.ik_frame_error_mm
+    ik_mean = s.get("ik_floor_mm", cfg.get("ik_floor_mm"))
+    if ik_mean is None and ik is not None:
+        ik_mean = float(ik.mean())
+    if ik_mean is not None or ik is not None:
+        ik_joint = res.ik_joint_error_mm
+        mmta_ik = None if ik_joint is None else float((ik_joint < MMTA_DELTA_MM).mean())
+        trows.append(["IK floor", _f(ik_mean), _f(None if ik is None else float(ik.max())), _pct(mmta_ik),
+                      "–", "–"])
+    L += _table(["run", "D_mean (mm)", "D_max (mm)", "MMTA (%)", "MMTP (mm)", "frames/s"], trows) + [""]
+    if len(rows) > 1:
+        L += [f"Spread of D_mean over the runs (standard deviation): {_f(spread)} mm.", ""]
+    for f in figures:
+        if Path(f).name.startswith("error_over_time"):
+            L += [f"![3D error over time: each run, their mean and the IK floor]({_rel(Path(f), base)})", ""]
+
+    # ---------------------------------------------------------------- per joint
+    per_run = res.per_joint_by_run()
+    pj = s.get("per_joint_mm") or {}
+    ik_pj = None if res.ik_joint_error_mm is None else res.ik_joint_error_mm.mean(axis=0)
+    jrows = []
+    for j, name in enumerate(JOINTS15):
+        mean = pj.get(name, float(per_run[:, j].mean()))
+        jrows.append([name, _f(mean), _f(per_run[:, j].min()), _f(per_run[:, j].max()),
+                      _f(None if ik_pj is None else ik_pj[j])])
+    L += ["## Error per joint", "", "Mean distance over the frames (mm): mean over the runs, best and worst run, "
+          "and the IK floor of the joint.", ""]
+    L += _table(["joint", "mean (mm)", "best run (mm)", "worst run (mm)", "IK floor (mm)"], jrows) + [""]
+    for f in figures:
+        if not Path(f).name.startswith("error_over_time"):
+            L += [f"![{Path(f).stem.replace('_', ' ')}]({_rel(Path(f), base)})", ""]
+
+    # ---------------------------------------------------------------- overlays
+    if overlays or video:
+        L += ["## Overlays", "",
+              "The tracked cones on the camera views (left limbs blue, right limbs vermillion, torso and head "
+              "green) and the ground-truth skeleton (yellow).", ""]
+        for p in overlays:
+            L += [f"![{Path(p).stem}]({_rel(Path(p), base)})", ""]
+        if video:
+            L += [f"Video of every frame: [{Path(video).name}]({_rel(Path(video), base)})", ""]
+
+    # ---------------------------------------------------------------- versions
+    versions = cfg.get("versions") or {}
+    if versions:
+        L += ["## Versions", ""] + _table(["component", "version"],
+                                          [[str(k), f"`{v}`"] for k, v in versions.items()], "ll") + [""]
+    out_path.write_text("\n".join(L).rstrip() + "\n", encoding="utf-8")
+    return out_path

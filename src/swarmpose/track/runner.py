@@ -1,0 +1,164 @@
+"""Running many tracking runs: local processes by default, a Dask cluster on request.
+
+A *job* is one run of one configuration on one sequence. Jobs are independent and deterministic
+(run ``k`` of seed ``S`` always draws from ``SeedSequence([S, k])``), so the results are identical
+whether they run in this process, in local worker processes or on a Dask cluster.
+"""
+
+from __future__ import annotations
+
+import json
+import multiprocessing
+import os
+import sys
+from collections.abc import Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from swarmpose.metrics import TrackErrors, aggregate_runs
+from swarmpose.track.tracker import TrackConfig, config_record, prepare_track, run_tracker
+
+__all__ = ["Job", "resolve_sequence", "run_jobs", "track_runs"]
+
+
+@dataclass(frozen=True)
+class Job:
+    sequence: str
+    config: dict[str, Any]
+    run: int
+    out_dir: str
+    resume: bool = False
+
+
+def resolve_sequence(source: str | Path, *, cache_dir: Path | None = None, progress: bool = True) -> Path:
+    """A sequence folder as is; a ``.bvh`` clip is synthesised once with default settings into a cache."""
+    p = Path(source)
+    if p.suffix.lower() == ".bvh":
+        from swarmpose.synth.synthesize import cached_sequence
+
+        kwargs: dict[str, Any] = {"progress": progress}
+        if cache_dir is not None:
+            kwargs["cache_dir"] = cache_dir
+        return Path(cached_sequence(p, **kwargs))
+    if str(source).startswith("humaneva:"):
+        from swarmpose.datasets.humaneva import humaneva_sequence  # type: ignore[import-not-found]
+
+        return Path(humaneva_sequence(str(source)[len("humaneva:"):]))
+    return p
+
+
+def _worker_init(threads: int) -> None:
+    import numba
+
+    numba.set_num_threads(max(1, threads))
+
+
+def run_job(job: Job) -> dict[str, Any]:
+    """Execute one job (top-level so that worker processes and Dask can pickle it)."""
+    cfg = TrackConfig(**job.config)
+    out = Path(job.out_dir)
+    setup = prepare_track(job.sequence, cfg, out)
+    res = run_tracker(setup, job.run, out, resume=job.resume)
+    return {"run": job.run, "out_dir": job.out_dir, **res.errors}
+
+
+def run_jobs(jobs: Sequence[Job], *, workers: int | None = None, scheduler: str | None = None,
+             progress: bool = True) -> list[dict[str, Any]]:
+    """Run jobs in parallel local processes (default), in-process (``workers=1``) or on Dask."""
+    from tqdm import tqdm
+
+    results: list[dict[str, Any] | None] = [None] * len(jobs)
+    bar = tqdm(total=len(jobs), desc="runs", unit="run", file=sys.stderr, disable=not progress)
+    if scheduler:
+        from dask.distributed import Client, as_completed as dask_completed
+
+        with Client(scheduler) as client:
+            futures = {client.submit(run_job, j, pure=False): i for i, j in enumerate(jobs)}
+            for fut in dask_completed(futures):
+                results[futures[fut]] = fut.result()
+                bar.update(1)
+    else:
+        cpus = os.cpu_count() or 1
+        workers = min(len(jobs), cpus) if workers is None else max(1, workers)
+        if workers == 1:
+            for i, j in enumerate(jobs):
+                results[i] = run_job(j)
+                bar.update(1)
+        else:
+            # "spawn": numba's OpenMP threading layer is not fork-safe once the parent has used it
+            ctx = multiprocessing.get_context("spawn")
+            with ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_worker_init,
+                                     initargs=(max(1, cpus // workers),)) as pool:
+                futures = {pool.submit(run_job, j): i for i, j in enumerate(jobs)}
+                for fut in as_completed(futures):
+                    results[futures[fut]] = fut.result()
+                    bar.update(1)
+    bar.close()
+    return [r for r in results if r is not None]
+
+
+def _errors_from(summary: dict[str, Any]) -> TrackErrors:
+    keys = ("d_mean", "d_max", "d_std", "mmta", "mmtp", "mu", "sigma")
+    return TrackErrors(d_per_frame=np.zeros(0), per_joint=summary["per_joint"], **{k: summary[k] for k in keys})
+
+
+def track_runs(sequence: str | Path, config: TrackConfig, runs: int, out_dir: Path, *, resume: bool = False,
+               workers: int | None = None, scheduler: str | None = None, progress: bool = True) -> dict[str, Any]:
+    """Track ``runs`` runs of one configuration and write ``out_dir`` (config, runs, summary)."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    setup = prepare_track(sequence, config, out_dir)  # fits and caches the IK floor once
+    cfg_file = out_dir / "config.json"
+    record = config_record(setup, runs)
+    if cfg_file.is_file() and resume:
+        old = json.loads(cfg_file.read_text())
+        same = {k: old.get(k) for k in asdict(config)} == {k: record[k] for k in asdict(config)}
+        if not same:
+            from swarmpose.errors import ConfigError
+
+            raise ConfigError(f"{cfg_file}: the run being resumed used another configuration")
+    cfg_file.write_text(json.dumps(record, indent=1) + "\n")
+    jobs = [Job(str(sequence), asdict(config), k, str(out_dir), resume) for k in range(runs)]
+    if progress and workers == 1:
+        # in-process: one bar per run, by frames
+        from tqdm import tqdm
+
+        per_run = []
+        for job in jobs:
+            with tqdm(total=len(setup.frame_indices), desc=f"{config.algo} run {job.run}", unit="frame",
+                      file=sys.stderr) as bar:
+                res = run_tracker(setup, job.run, out_dir, resume=resume,
+                                  progress=lambda k, T, bar=bar: bar.update(k - bar.n))
+            per_run.append({"run": job.run, "out_dir": str(out_dir), **res.errors})
+    else:
+        per_run = run_jobs(jobs, workers=workers, scheduler=scheduler, progress=progress)
+    agg = aggregate_runs([_errors_from(r) for r in per_run])
+    summary = {
+        "algo": config.algo,
+        "fps": config.fps,
+        "runs": runs,
+        "evals_per_frame": setup.evals_per_frame,
+        "d_mean_mm": agg["d_mean"],
+        "d_max_mm": agg["d_max"],
+        "ik_floor_mm": setup.ik_floor_mm,
+        "mmta": agg["mmta"],
+        "mmtp_mm": agg["mmtp"],
+        "frames_per_s": float(np.mean([r["frames_per_s"] for r in per_run])),
+        "frames": int(len(setup.frame_indices)),
+        "worst": {"run": agg["worst"]["run"], "d_mean_mm": agg["worst"]["d_mean"],
+                  "d_max_mm": agg["worst"]["d_max"], "mmta": agg["worst"]["mmta"]},
+        "d_mean_std_over_runs": agg["d_mean_std_over_runs"],
+        "per_joint_mm": agg["per_joint"],
+        "per_run": [{"run": r["run"], "d_mean_mm": r["d_mean"], "d_max_mm": r["d_max"], "mmta": r["mmta"],
+                     "frames_per_s": r["frames_per_s"]} for r in sorted(per_run, key=lambda r: r["run"])],
+        "sequence": str(sequence),
+        "fitness": config.fitness_kind,
+        "seed": config.seed,
+        "out_dir": str(out_dir),
+    }
+    (out_dir / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
+    return summary

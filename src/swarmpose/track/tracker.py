@@ -1,0 +1,336 @@
+"""Frame-by-frame tracking: a named optimiser against each frame's fitness (design.md §1, thesis ch. 5).
+
+For every processed frame (the sequence subsampled to the requested rate) the tracker
+
+1. predicts from the previous estimate with the zero-velocity motion model (thesis sec. 5.3.2: the
+   swarm starts at N(x̂_{t-1}, Σ) with σ scaled by 60/fps; the optimiser registry does the scaling),
+2. binds the frame's observation to the fitness (image features or 2D markers),
+3. runs the optimiser's stages/layers with the body model's hard priors as constraint, switching the
+   fitness options per stage (``opt.fitness_options``),
+4. keeps ``opt.best.x`` as the estimate and carries the optimiser's state (the APF particle set,
+   Deutscher & Reid eq. 9) to the next frame.
+
+Results are written as the run goes (``progress.npz``, replaced atomically after each frame, with
+the generator's state and the carried particle set), so an interrupted run resumes exactly where it
+stopped and gives the same result as an uninterrupted one.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from swarmpose.body.ik import fit_ik
+from swarmpose.body.model import BodyModel
+from swarmpose.body.priors import HardPriors
+from swarmpose.body.spec import Subject, load_spec
+from swarmpose.errors import ConfigError, DataError
+from swarmpose.metrics import track_errors
+
+__all__ = ["TrackConfig", "RunResult", "prepare_track", "run_tracker", "TrackSetup", "versions"]
+
+IMAGE_FITNESS = ("silhouette_edge", "deutscher_reid")
+MARKER_FITNESS = ("markers", "reprojection")
+
+
+@dataclass(frozen=True)
+class TrackConfig:
+    """Everything that defines a tracking run except the run index.
+
+    ``fitness="auto"`` picks the algorithm's own: markers for the AAPSO family (Sharifi et al.),
+    silhouette + edge for the others (thesis). ``budget`` is informational: it is the optimiser's
+    evaluations per frame and is checked, never changed, here.
+    """
+
+    algo: str = "sppso"
+    fps: float = 20.0
+    model: str = "balan31"
+    variant: str | None = "thesis"
+    fitness: str = "auto"
+    backend: str = "numba"
+    downsample: int = 1
+    seed: int = 0
+    start: str = "ik"  # "ik": IK fit of the first processed frame's ground truth
+    optim_variant: str = ""  # see swarmpose.experiments.suites.apply_variant
+    fitness_options: str = ""  # "key=value,..." merged over each stage's options
+
+    def __post_init__(self) -> None:
+        if self.fps <= 0:
+            raise ConfigError(f"fps must be positive, got {self.fps}")
+        if self.downsample not in (1, 2, 4, 8):
+            raise ConfigError(f"downsample must be 1, 2, 4 or 8, got {self.downsample}")
+        if self.fitness not in ("auto", *IMAGE_FITNESS, *MARKER_FITNESS):
+            raise ConfigError(f"unknown fitness {self.fitness!r}; known: auto, "
+                              f"{', '.join(IMAGE_FITNESS + MARKER_FITNESS)}")
+
+    def optimizer(self, model: BodyModel):
+        """The named optimiser configuration for ``model`` at this frame rate, variant applied."""
+        from swarmpose import optim
+        from swarmpose.experiments.suites import apply_variant
+
+        return apply_variant(optim.get(self.algo, model=model, fps=self.fps), self.optim_variant)
+
+    @property
+    def fitness_kind(self) -> str:
+        if self.fitness != "auto":
+            return self.fitness
+        return "markers" if self.algo.startswith("aapso") else "silhouette_edge"
+
+
+def run_seed(seed: int, run: int) -> np.random.SeedSequence:
+    """Run ``k``'s generator is derived from the user's seed and ``k`` (recorded in the results)."""
+    return np.random.SeedSequence([int(seed), int(run)])
+
+
+def versions() -> dict[str, str]:
+    import numba
+    import scipy
+
+    from swarmpose import __version__
+
+    return {"swarmpose": __version__, "python": platform.python_version(), "numpy": np.__version__,
+            "scipy": scipy.__version__, "numba": numba.__version__, "machine": platform.machine(),
+            "cpus": str(os.cpu_count())}
+
+
+@dataclass
+class TrackSetup:
+    """What every run of one (sequence, config) shares: model, frames, ground truth, IK floor."""
+
+    sequence_path: Path
+    config: TrackConfig
+    model: BodyModel
+    frame_indices: np.ndarray
+    frame_times: np.ndarray
+    gt_joints: np.ndarray
+    ik_params: np.ndarray
+    ik_error_mm: np.ndarray
+    world_from_source: np.ndarray
+    evals_per_frame: int
+
+    @property
+    def ik_floor_mm(self) -> float:
+        return float(self.ik_error_mm.mean())
+
+
+def _subject_for(seq: Any, spec) -> Subject:
+    from swarmpose.body.subject import subject_from_clip
+    from swarmpose.io.mocap import load_clip
+
+    clip_path = getattr(seq, "source_clip", None)
+    if clip_path is None or not Path(clip_path).is_file():
+        raise DataError(f"sequence {seq.path if hasattr(seq, 'path') else seq}: its source clip "
+                        f"({clip_path}) is needed to measure the subject and was not found")
+    return subject_from_clip(spec, load_clip(clip_path))
+
+
+def prepare_track(sequence_path: str | Path, config: TrackConfig, out_dir: Path | None = None) -> TrackSetup:
+    """Load the sequence's metadata, build the subject's model and fit the IK floor (cached in out_dir)."""
+    from swarmpose.io.sequence import open_sequence
+
+    seq = open_sequence(sequence_path)
+    try:
+        if seq.gt_joints is None:
+            raise DataError(f"{sequence_path}: the sequence has no ground-truth joints; tracking needs "
+                            "them for the start pose and the errors")
+        spec = load_spec(config.model)
+        subject = None
+        if out_dir is not None and (out_dir / "subject.json").is_file():
+            subject = Subject.load(out_dir / "subject.json")
+        if subject is None:
+            subject = _subject_for(seq, spec)
+        model = BodyModel(spec, subject, config.variant)
+        frames = np.asarray(seq.subsample(config.fps), dtype=np.int64)
+        gt = np.asarray(seq.gt_joints)[frames]
+        times = np.asarray(seq.frame_times)[frames]
+        ik_file = None if out_dir is None else out_dir / "ik.npz"
+        if ik_file is not None and ik_file.is_file():
+            with np.load(ik_file, allow_pickle=False) as z:
+                ik_params, ik_err = z["params"], z["joint_error_mm"]
+        else:
+            ik = fit_ik(model, gt)
+            ik_params, ik_err = ik.params, ik.joint_error_mm
+            if ik_file is not None:
+                out_dir.mkdir(parents=True, exist_ok=True)
+                _atomic_savez(ik_file, params=ik_params, joint_error_mm=ik_err, frame_indices=frames)
+                subject.save(out_dir / "subject.json")
+        algo = config.optimizer(model)
+        return TrackSetup(sequence_path=Path(sequence_path), config=config, model=model, frame_indices=frames,
+                          frame_times=times, gt_joints=gt, ik_params=ik_params, ik_error_mm=ik_err,
+                          world_from_source=np.asarray(seq.world_from_source, dtype=np.float64),
+                          evals_per_frame=int(algo.evals_per_frame))
+    finally:
+        seq.close()
+
+
+@dataclass
+class RunResult:
+    run: int
+    params: np.ndarray
+    joints: np.ndarray
+    scores: np.ndarray
+    evaluations: np.ndarray
+    seconds: np.ndarray
+    errors: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def frames_per_s(self) -> float:
+        return float(len(self.seconds) / max(self.seconds.sum(), 1e-12))
+
+
+def _atomic_savez(path: Path, **arrays: Any) -> None:
+    tmp = path.with_name(path.name + ".tmp.npz")
+    np.savez(tmp, **arrays)
+    os.replace(tmp, path)
+
+
+def _make_fitness(setup: TrackSetup):
+    from swarmpose.fitness import make_fitness
+
+    return make_fitness(setup.config.fitness_kind, setup.model, backend=setup.config.backend)
+
+
+def _frame_observation(seq: Any, k: int, kind: str, downsample: int, backgrounds: Any):
+    if kind in MARKER_FITNESS:
+        from swarmpose.fitness import MarkerFrame
+
+        markers = seq.markers(k)
+        if markers is None:
+            raise DataError(f"{seq}: frame {k} has no 2D marker detections (needed by the {kind} fitness)")
+        return MarkerFrame(markers, list(seq.cameras))
+    from swarmpose.features import compute_features
+
+    images = seq.images(k)
+    if images is None:
+        raise DataError(f"{seq}: frame {k} has no images (needed by the {kind} fitness)")
+    return compute_features(images, backgrounds, list(seq.cameras), downsample=downsample)
+
+
+def run_tracker(
+    setup: TrackSetup,
+    run: int,
+    out_dir: Path | None = None,
+    *,
+    resume: bool = False,
+    progress: Callable[[int, int], None] | None = None,
+    stop_after: int | None = None,
+) -> RunResult:
+    """Track one run (``run`` selects the generator) and write ``out_dir/run_XXX/``.
+
+    ``stop_after`` ends the run after that many frames (used to test resuming; the progress file
+    stays and ``resume=True`` continues from it).
+    """
+    from swarmpose import optim
+    from swarmpose.io.sequence import open_sequence
+
+    from swarmpose.experiments.suites import parse_fitness_options
+
+    cfg = setup.config
+    model = setup.model
+    algo = cfg.optimizer(model)
+    extra_options = parse_fitness_options(cfg.fitness_options)
+    constraint = HardPriors(model).valid
+    fitness = _make_fitness(setup)
+    T, D = len(setup.frame_indices), model.n_params
+
+    params = np.zeros((T, D))
+    scores = np.zeros(T)
+    evals = np.zeros(T, dtype=np.int64)
+    seconds = np.zeros(T)
+    rng = np.random.default_rng(run_seed(cfg.seed, run))
+    x_prev = setup.ik_params[0].copy() if cfg.start == "ik" else model.zero_pose()
+    carry = None
+    start_k = 0
+    run_dir = None if out_dir is None else out_dir / f"run_{run:03d}"
+    progress_file = None if run_dir is None else run_dir / "progress.npz"
+    if run_dir is not None:
+        run_dir.mkdir(parents=True, exist_ok=True)
+        if progress_file.is_file():
+            if not resume:
+                raise ConfigError(f"{progress_file} exists: pass --resume to continue it, or use a new --out")
+            with np.load(progress_file, allow_pickle=False) as z:
+                start_k = int(z["done"])
+                params[:start_k], scores[:start_k] = z["params"][:start_k], z["scores"][:start_k]
+                evals[:start_k], seconds[:start_k] = z["evaluations"][:start_k], z["seconds"][:start_k]
+                x_prev = z["x_prev"].copy()
+                rng.bit_generator.state = json.loads(str(z["rng_state"]))
+                if "carry_x" in z.files:
+                    carry = optim.ParticleSet(z["carry_x"].copy(), z["carry_w"].copy())
+
+    seq = open_sequence(setup.sequence_path)
+    backgrounds = seq.backgrounds() if cfg.fitness_kind in IMAGE_FITNESS else None
+    try:
+        for i in range(start_k, T):
+            if stop_after is not None and i >= stop_after:
+                break
+            t0 = time.perf_counter()
+            fitness.bind(_frame_observation(seq, int(setup.frame_indices[i]), cfg.fitness_kind,
+                                            cfg.downsample, backgrounds))
+            opt = algo.start(x_prev, rng, constraint=constraint, carry=carry)
+            while not opt.done:
+                poses = opt.ask()
+                options = {**opt.fitness_options, **extra_options} if extra_options else opt.fitness_options
+                opt.tell(fitness.evaluate(poses, options))
+            best = opt.best
+            x_prev = np.array(best.x, dtype=np.float64)
+            carry = opt.carry() if hasattr(opt, "carry") else None
+            params[i], scores[i], evals[i] = x_prev, best.score, opt.evaluations
+            seconds[i] = time.perf_counter() - t0
+            if progress_file is not None:
+                extra = {} if carry is None else {"carry_x": carry.particles, "carry_w": carry.weights}
+                _atomic_savez(progress_file, done=i + 1, params=params, scores=scores, evaluations=evals,
+                              seconds=seconds, x_prev=x_prev,
+                              rng_state=np.array(json.dumps(rng.bit_generator.state)), **extra)
+            if progress is not None:
+                progress(i + 1, T)
+    finally:
+        seq.close()
+
+    done = int(np.count_nonzero(evals))
+    joints = model.joints15(params[:done]) if done else np.zeros((0, 15, 3))
+    result = RunResult(run=run, params=params[:done], joints=joints, scores=scores[:done],
+                       evaluations=evals[:done], seconds=seconds[:done])
+    if done == T:
+        errs = track_errors(joints, setup.gt_joints)
+        result.errors = {**errs.summary(), "frames_per_s": result.frames_per_s,
+                         "evals_per_frame": int(evals.max()), "ik_floor_mm": setup.ik_floor_mm}
+        if run_dir is not None:
+            _write_run(run_dir, setup, result, errs.d_per_frame)
+    return result
+
+
+def _write_run(run_dir: Path, setup: TrackSetup, result: RunResult, d_per_frame: np.ndarray) -> None:
+    from swarmpose.cli.common import to_jsonable
+
+    _atomic_savez(run_dir / "track.npz", params=result.params, joints=result.joints, scores=result.scores,
+                  evaluations=result.evaluations, seconds=result.seconds, frame_indices=setup.frame_indices,
+                  d_per_frame=d_per_frame, param_names=np.array(setup.model.param_names))
+    _atomic_savez(run_dir / "joints.npz", joints=result.joints, gt_joints=setup.gt_joints,
+                  frame_times=setup.frame_times,
+                  world_from_source=setup.world_from_source)
+    (run_dir / "summary.json").write_text(json.dumps(to_jsonable({"run": result.run, **result.errors}),
+                                                     indent=1) + "\n")
+
+
+def config_record(setup: TrackSetup, runs: int) -> dict[str, Any]:
+    """What ``config.json`` holds: the configuration, seeds, budget and versions."""
+    return {
+        **asdict(setup.config),
+        "fitness_kind": setup.config.fitness_kind,
+        "runs": runs,
+        "run_seeds": {str(k): [setup.config.seed, k] for k in range(runs)},
+        "sequence": str(setup.sequence_path),
+        "frames": int(len(setup.frame_indices)),
+        "evals_per_frame": setup.evals_per_frame,
+        "ik_floor_mm": setup.ik_floor_mm,
+        "versions": versions(),
+        "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+    }

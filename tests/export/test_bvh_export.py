@@ -1,0 +1,111 @@
+"""BVH export: read back with swarmpose's own reader, the joints land where the model puts them."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from swarmpose.body.model import load_model
+from swarmpose.body.priors import HardPriors
+from swarmpose.errors import ConfigError, ShapeError
+from swarmpose.export import ROTATION_ORDERS, bvh_axes, euler_from_matrices, export_bvh
+from swarmpose.io.bvh import elementary_rotations, read_bvh
+
+
+def random_valid_poses(model, n: int, seed: int = 0) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    lo = np.where(np.isfinite(model.lower), model.lower, -np.pi)
+    hi = np.where(np.isfinite(model.upper), model.upper, np.pi)
+    P = rng.uniform(lo, hi, size=(20 * n, model.n_params))
+    for name, (a, b) in {"pelvis_tx": (-2000, 2000), "pelvis_ty": (-2000, 2000), "pelvis_tz": (800, 1100)}.items():
+        P[:, model.param_index(name)] = rng.uniform(a, b, len(P))
+    P = P[HardPriors(model).valid(P)]
+    assert len(P) >= n
+    return P[:n]
+
+
+def _back_to_world(path: Path, y_up: bool, scale: float = 1.0):
+    clip = read_bvh(path)
+    return clip, clip.global_positions() @ bvh_axes(y_up) / scale  # world = A^T p
+
+
+@pytest.mark.parametrize("model_name", ["balan31", "full45"])
+@pytest.mark.parametrize("y_up", [True, False])
+@pytest.mark.parametrize("order", ["ZXY", "XYZ", "model"])
+def test_round_trip_positions(tmp_path: Path, model_name: str, y_up: bool, order: str):
+    model = load_model(model_name)
+    P = random_valid_poses(model, 12, seed=len(order) + y_up)
+    path = export_bvh(model, P, 60.0, tmp_path / "m.bvh", y_up=y_up, rotation_order=order)
+    clip, world = _back_to_world(path, y_up)
+    assert clip.frames == 12
+    names = model.spec.joint_names
+    assert sorted(clip.joint_names) == sorted(names)
+    idx = [clip.joint_names.index(n) for n in names]
+    err = np.abs(world[:, idx] - model.joint_positions(P)).max()
+    assert err < 1e-3, err
+    # every joint rotates; the root also translates; leaves end in an End Site
+    for j in clip.joints:
+        assert sum(c.endswith("rotation") for c in j.channels) == 3
+    assert clip.joints[0].channels[:3] == ("Xposition", "Yposition", "Zposition")
+    leaves = [i for i in range(len(clip.joints)) if not clip.children(i)]
+    assert leaves and all(clip.joints[i].end_site is not None for i in leaves)
+
+
+def test_header_and_units(tmp_path: Path):
+    model = load_model("balan31")
+    P = random_valid_poses(model, 4)
+    path = export_bvh(model, P, 20.0, tmp_path / "cm" / "m.bvh", scale=0.1)
+    text = path.read_text()
+    assert "MOTION\nFrames: 4\nFrame Time: 0.05000000\n" in text
+    clip, world = _back_to_world(path, True, scale=0.1)
+    assert clip.frame_rate == 20.0 and clip.frame_time == pytest.approx(0.05)
+    idx = [clip.joint_names.index(n) for n in model.spec.joint_names]
+    np.testing.assert_allclose(world[:, idx], model.joint_positions(P), atol=1e-3)
+    p60 = export_bvh(model, P, 60.0, tmp_path / "60.bvh")
+    assert read_bvh(p60).frame_rate == 60.0
+    # offsets are the subject's measurements, in the file's axes (Y up: (x, z, -y))
+    thigh = read_bvh(p60).joints[read_bvh(p60).joint_index("l_knee")].offset
+    np.testing.assert_allclose(thigh, bvh_axes(True) @ np.asarray(model.subject.offsets["l_thigh"]), atol=1e-6)
+
+
+def test_angles_are_continuous(tmp_path: Path):
+    """A root turning three times about the vertical: no 360 degree jumps between frames."""
+    model = load_model("balan31")
+    T = 240
+    P = np.zeros((T, model.n_params))
+    P[:, model.param_index("pelvis_rz")] = np.linspace(0.0, 6.0 * np.pi, T)
+    P[:, model.param_index("pelvis_tz")] = 950.0
+    P[:, model.param_index("l_shoulder_abd")] = np.linspace(0.0, np.pi, T)  # through 90 degrees
+    P[:, model.param_index("l_shoulder_flex")] = 0.3
+    path = export_bvh(model, P, 60.0, tmp_path / "turn.bvh")
+    clip = read_bvh(path)
+    jumps = np.abs(np.diff(clip.motion[:, 3:], axis=0))
+    assert jumps.max() < 10.0, jumps.max()
+    idx = [clip.joint_names.index(n) for n in model.spec.joint_names]
+    world = clip.global_positions() @ bvh_axes(True)
+    assert np.abs(world[:, idx] - model.joint_positions(P)).max() < 1e-3
+
+
+@pytest.mark.parametrize("order", ROTATION_ORDERS)
+def test_euler_convention_matches_bvh_reader(order: str):
+    rng = np.random.default_rng(1)
+    from scipy.spatial.transform import Rotation
+
+    R = Rotation.random(50, random_state=rng).as_matrix()
+    ang = euler_from_matrices(R, order, continuous=False)
+    back = np.einsum("nab,nbc,ncd->nad", elementary_rotations(order[0], ang[:, 0]),
+                     elementary_rotations(order[1], ang[:, 1]), elementary_rotations(order[2], ang[:, 2]))
+    np.testing.assert_allclose(back, R, atol=1e-10)
+
+
+def test_errors(tmp_path: Path):
+    model = load_model("balan31")
+    P = np.zeros((2, model.n_params))
+    with pytest.raises(ShapeError):
+        export_bvh(model, np.zeros((2, 5)), 60.0, tmp_path / "a.bvh")
+    with pytest.raises(ConfigError, match="frame_rate"):
+        export_bvh(model, P, 0.0, tmp_path / "a.bvh")
+    with pytest.raises(ConfigError, match="rotation order"):
+        export_bvh(model, P, 60.0, tmp_path / "a.bvh", rotation_order="XXY")

@@ -1,0 +1,58 @@
+"""``swarmpose report`` and ``swarmpose export``: paths printed, one JSON object with --json."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+from typer.testing import CliRunner
+
+from swarmpose.cli.app import app
+from swarmpose.export import bvh_axes
+from swarmpose.io.bvh import read_bvh
+from swarmpose.report import load_results
+
+
+def _copy(src: Path, tmp_path: Path) -> Path:
+    dst = tmp_path / "res"
+    shutil.copytree(src, dst, ignore=shutil.ignore_patterns("report"))
+    return dst
+
+
+def test_report_json(fake_results, tmp_path: Path):
+    res = _copy(fake_results[0], tmp_path)
+    out = CliRunner().invoke(app, ["report", str(res), "--frames", "1", "--json"])
+    assert out.exit_code == 0, out.output
+    data = json.loads(out.stdout)
+    assert set(data) == {"summary", "figures", "overlays", "video"}
+    assert data["video"] is None and len(data["overlays"]) == 1 and len(data["figures"]) == 2
+    assert all(Path(p).is_file() for p in [data["summary"], *data["figures"], *data["overlays"]])
+
+
+def test_report_text_and_errors(fake_results, tmp_path: Path):
+    res = _copy(fake_results[0], tmp_path)
+    out = CliRunner().invoke(app, ["report", str(res), "--frames", "0", "--video", "--out", str(tmp_path / "r")])
+    assert out.exit_code == 0, out.output
+    assert str(tmp_path / "r" / "summary.md") in out.output and "overlay_run000.gif" in out.output
+    bad = CliRunner().invoke(app, ["report", str(tmp_path)])
+    assert bad.exit_code == 2
+    assert "config.json not found: is this a swarmpose results folder?" in " ".join(bad.output.split())
+
+
+def test_export_json_round_trip(fake_results, tmp_path: Path):
+    bvh = tmp_path / "motion.bvh"
+    out = CliRunner().invoke(app, ["export", str(fake_results[0]), "--run", "1", "--out", str(bvh), "--json"])
+    assert out.exit_code == 0, out.output
+    data = json.loads(out.stdout)
+    assert data["bvh"] == str(bvh) and data["frames"] == 6 and data["frame_rate"] == 20.0
+    res = load_results(fake_results[0])
+    clip = read_bvh(bvh)
+    assert clip.frames == 6 and clip.frame_rate == 20.0
+    world = clip.global_positions() @ bvh_axes(True)
+    names = res.model.spec.joint_names
+    idx = [clip.joint_names.index(n) for n in names]
+    np.testing.assert_allclose(world[:, idx], res.model.joint_positions(res.run(1).params), atol=1e-3)
+    missing = CliRunner().invoke(app, ["export", str(fake_results[0]), "--run", "7", "--out", str(bvh)])
+    assert missing.exit_code == 2 and "no finished run 7" in " ".join(missing.output.split())

@@ -1,0 +1,77 @@
+"""summary.md and make_report: the numbers of summary.json, the tables, figures by relative path."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+
+from swarmpose.joints import JOINTS15
+from swarmpose.report import load_results, make_report, write_summary
+
+
+@pytest.fixture()
+def results_copy(fake_results, tmp_path: Path) -> Path:
+    dst = tmp_path / "res"
+    shutil.copytree(fake_results[0], dst, ignore=shutil.ignore_patterns("report"))
+    return dst
+
+
+def test_make_report_writes_everything(results_copy: Path):
+    paths = make_report(results_copy, overlay_frames=2, video=True)
+    rep = results_copy / "report"
+    assert paths.summary == rep / "summary.md"
+    assert paths.figures == [rep / "error_over_time.png", rep / "per_joint_errors.png"]
+    assert len(paths.overlays) == 2 and all(p.parent == rep / "overlays" for p in paths.overlays)
+    assert paths.video == rep / "overlay_run000.gif"
+    for p in [paths.summary, *paths.figures, *paths.overlays, paths.video]:
+        assert p.is_file() and p.stat().st_size > 1000, p
+    assert paths.notes == []
+    d = paths.to_dict()
+    assert set(d) == {"summary", "figures", "overlays", "video"}
+    md = paths.summary.read_text()
+    for p in [*paths.figures, *paths.overlays]:
+        assert f"]({p.relative_to(rep).as_posix()})" in md
+    assert "](overlay_run000.gif)" in md
+
+
+def test_summary_has_the_numbers(results_copy: Path):
+    s = json.loads((results_copy / "summary.json").read_text())
+    md = write_summary(results_copy).read_text()
+    mean_row = (f"| **mean** | {s['d_mean_mm']:.1f} | {s['d_max_mm']:.1f} | {100 * s['mmta']:.1f} | "
+                f"{s['mmtp_mm']:.1f} | {s['frames_per_s']:.2f} |")
+    assert mean_row in md
+    for r in s["per_run"]:
+        assert f"| {r['run']} | {r['d_mean_mm']:.1f} | {r['d_max_mm']:.1f} | {100 * r['mmta']:.1f} |" in md
+    w = s["worst"]
+    assert f"| **worst** (run {w['run']}) | {w['d_mean_mm']:.1f} | {w['d_max_mm']:.1f} |" in md
+    assert f"| IK floor | {s['ik_floor_mm']:.1f} |" in md
+    for name in JOINTS15:
+        assert f"| {name} | {s['per_joint_mm'][name]:.1f} |" in md
+    cfg = json.loads((results_copy / "config.json").read_text())
+    assert f"| numpy | `{cfg['versions']['numpy']}` |" in md
+    assert "| algorithm | sppso |" in md and "| tracking frame rate | 20 fps |" in md
+    assert "swarmpose track " in md and "--seed 3" in md
+
+
+def test_report_without_sequence_skips_overlays(results_copy: Path, tmp_path: Path):
+    cfg = json.loads((results_copy / "config.json").read_text())
+    cfg["sequence"] = str(tmp_path / "moved")
+    (results_copy / "config.json").write_text(json.dumps(cfg))
+    paths = make_report(results_copy)
+    assert paths.overlays == [] and paths.video is None
+    assert len(paths.notes) == 1 and "overlays skipped" in paths.notes[0]
+    assert "> Note: overlays skipped" in paths.summary.read_text()
+    assert all(p.is_file() for p in paths.figures)
+
+
+def test_single_run_report(results_copy: Path):
+    shutil.rmtree(results_copy / "run_001")
+    (results_copy / "summary.json").unlink()
+    res = load_results(results_copy)
+    paths = make_report(res, overlay_frames=0)
+    md = paths.summary.read_text()
+    assert "**worst**" not in md and "| 0 |" in md
+    assert paths.overlays == []
