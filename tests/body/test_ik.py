@@ -62,3 +62,16 @@ def test_walking_ik_floor_is_small_and_poses_are_valid(walk):
     assert res.floor_max_mm < 60.0
     # the ground truth must be a feasible pose for the tracker: hard priors hold on it
     assert HardPriors(model).valid(res.params).mean() > 0.99
+
+
+def test_subject_from_joints_alone_fits_almost_as_well(walk):
+    """Without a skeleton file (HumanEva), the subject measured from the 15 joints still fits them."""
+    from swarmpose.body.subject import subject_from_joints
+
+    clip, model, res = walk
+    spec = model.spec
+    subj = subject_from_joints(spec, clip.joints, name="gt-only")
+    m2 = BodyModel(spec, subj, "thesis")
+    assert -subj.offsets["l_thigh"][2] == pytest.approx(-model.subject.offsets["l_thigh"][2], abs=1e-6)
+    res2 = fit_ik(m2, clip.joints[::3])
+    assert res2.floor_mean_mm < 15.0

@@ -81,7 +81,7 @@ def fit_ik(
     init: np.ndarray | None = None,
     max_nfev: int = 200,
     damping: float = 1.0,
-    rest_weight: float = 0.5,
+    rest_weight: float = 20.0,
     progress=None,
 ) -> IKResult:
     """Fit ``model`` to ground-truth joints ``(T, 15, 3)`` (mm) frame by frame.
@@ -96,7 +96,9 @@ def fit_ik(
     rest_weight : weight (mm per radian) of residuals ``rest_weight * x`` on the joint angles (not the
         root): among poses that fit the joints equally well (true null spaces such as a trunk twist
         against opposite clavicle protractions) the one closest to the zero pose wins, so the fit
-        does not drift along them from frame to frame.
+        does not drift along them from frame to frame. Measured on cmu_16_16_walk: with 0.5 the
+        trunk twist swings +-35 deg against clavicles at their limits (27 deg/frame jumps); with 20
+        it stays within +-12 deg (under 2 deg/frame) for an IK floor of 2.1 mm instead of 0.9 mm.
     progress : optional callable ``progress(k)`` called after each frame (for progress bars).
     """
     gt = np.asarray(joints15, dtype=np.float64)

@@ -22,7 +22,7 @@ from swarmpose.body.spec import BodySpec, Subject
 from swarmpose.io.bvh import BvhClip
 from swarmpose.io.mocap import MocapClip
 
-__all__ = ["rest_positions", "subject_from_clip"]
+__all__ = ["rest_positions", "subject_from_clip", "subject_from_joints"]
 
 
 def rest_positions(bvh: BvhClip) -> tuple[np.ndarray, np.ndarray]:
@@ -83,3 +83,56 @@ def subject_from_clip(spec: BodySpec, clip: MocapClip) -> Subject:
     cones = {name: (r0 * ratio, r1 * ratio, sx, sy) for name, (r0, r1, sx, sy) in spec.default_subject.cones.items()}
     return Subject(name=clip.name, offsets=offsets, cones=cones,
                    source=f"rest pose of {clip.source_path}; cone radii = reference x {ratio:.3f}")
+
+
+def _frames(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """Per-frame right-handed frames ``(T, 3, 3)`` (columns x, y, z) with y along ``a - b`` and z along ``c``."""
+    y = a - b
+    y /= np.linalg.norm(y, axis=-1, keepdims=True)
+    z = c - np.sum(c * y, axis=-1, keepdims=True) * y
+    z /= np.linalg.norm(z, axis=-1, keepdims=True)
+    x = np.cross(y, z)
+    return np.stack([x, y, z], axis=-1)
+
+
+def subject_from_joints(spec: BodySpec, joints15: np.ndarray, name: str = "subject") -> Subject:
+    """Measure a ``balan31``-layout subject from 15-joint ground truth alone (no skeleton file).
+
+    For sources without a skeleton (HumanEva mocap): limb lengths are the mean joint distances; the
+    branching offsets are averaged in per-frame body frames (pelvis: y from the right to the left
+    hip, z towards the thorax; thorax: y from the right to the left shoulder, z up the spine).
+    Frames with non-finite joints are ignored.
+    """
+    from swarmpose.joints import JOINT_INDEX as J
+
+    g = np.asarray(joints15, dtype=np.float64)
+    g = g[np.isfinite(g).all(axis=(1, 2))]
+    if len(g) == 0:
+        raise ValueError("no frame with finite ground-truth joints to measure a subject from")
+    pel, tho = g[:, J["pelvis"]], g[:, J["thorax"]]
+    Rp = _frames(g[:, J["l_hip"]], g[:, J["r_hip"]], tho - pel)
+    Rt = _frames(g[:, J["l_shoulder"]], g[:, J["r_shoulder"]], tho - pel)
+
+    def local(R: np.ndarray, v: np.ndarray) -> tuple[float, float, float]:
+        return tuple(float(c) for c in np.einsum("tji,tj->ti", R, v).mean(axis=0))  # type: ignore[return-value]
+
+    def length(a: str, b: str) -> float:
+        return float(np.linalg.norm(g[:, J[b]] - g[:, J[a]], axis=-1).mean())
+
+    offsets: dict[str, tuple[float, float, float]] = {
+        "spine_to_thorax": local(Rp, tho - pel),
+        "neck_to_head_top": local(Rt, g[:, J["head_top"]] - tho),
+    }
+    for side in ("l", "r"):
+        offsets[f"{side}_pelvis_to_hip"] = local(Rp, g[:, J[f"{side}_hip"]] - pel)
+        offsets[f"{side}_thorax_to_shoulder"] = local(Rt, g[:, J[f"{side}_shoulder"]] - tho)
+        offsets[f"{side}_thigh"] = (0.0, 0.0, -length(f"{side}_hip", f"{side}_knee"))
+        offsets[f"{side}_shank"] = (0.0, 0.0, -length(f"{side}_knee", f"{side}_ankle"))
+        offsets[f"{side}_upper_arm"] = (0.0, 0.0, -length(f"{side}_shoulder", f"{side}_elbow"))
+        offsets[f"{side}_forearm"] = (0.0, 0.0, -length(f"{side}_elbow", f"{side}_wrist"))
+    offsets = {k: v for k, v in offsets.items() if k in spec.default_subject.offsets}
+    ref = spec.default_subject.offsets
+    ratio = -(offsets["l_thigh"][2] + offsets["l_shank"][2]) / -(ref["l_thigh"][2] + ref["l_shank"][2])
+    cones = {n: (r0 * ratio, r1 * ratio, sx, sy) for n, (r0, r1, sx, sy) in spec.default_subject.cones.items()}
+    return Subject(name=name, offsets=offsets, cones=cones,
+                   source=f"15-joint ground truth ({len(g)} frames); cone radii = reference x {ratio:.3f}")

@@ -22,7 +22,17 @@ def main() -> None:
     app()
 
 
-# Command modules (each adds its commands to ``app``). Keep one import per line.
-from swarmpose.cli import clip_commands  # noqa: E402,F401
-from swarmpose.cli import synth_commands  # noqa: E402,F401
-from swarmpose.cli import demo  # noqa: E402,F401
+# Command modules: importing one adds its commands to ``app``.
+from swarmpose.cli import (  # noqa: E402
+    bench,
+    clip_commands,
+    compare_commands,
+    dataset_commands,
+    demo,
+    report_commands,
+    synth_commands,
+    track_commands,
+)
+
+__all__ = ["app", "main", "bench", "clip_commands", "compare_commands", "dataset_commands", "demo",
+           "report_commands", "synth_commands", "track_commands"]

@@ -42,13 +42,19 @@ def track(
                       downsample=downsample, seed=seed)
     seq = resolve_sequence(source, progress=not json_out)
     if out is None:
-        out = Path("results") / f"{seq.name}-{algo}-{fps:g}fps"
+        if isinstance(seq, str):  # a dataset spec such as humaneva:/data/HumanEva/S1/Walking_1
+            from swarmpose.datasets import dataset_sequence_name
+
+            name = dataset_sequence_name(seq)
+        else:
+            name = seq.name
+        out = Path("results") / f"{name}-{algo}-{fps:g}fps"
     summary = track_runs(seq, cfg, runs, out, resume=resume, workers=workers, scheduler=scheduler,
                          progress=not json_out)
     if json_out:
         print_json(summary)
         return
-    console.print(f"[bold]{algo}[/bold] on {seq.name} at {fps:g} fps, {runs} run(s), "
+    console.print(f"[bold]{algo}[/bold] on {out.name} at {fps:g} fps, {runs} run(s), "
                   f"{summary['evals_per_frame']} evaluations per frame ({summary['fitness']} fitness)")
     console.print(f"  D_mean {summary['d_mean_mm']:.1f} mm, D_max {summary['d_max_mm']:.1f} mm "
                   f"(IK floor {summary['ik_floor_mm']:.1f} mm); MMTA {100 * summary['mmta']:.1f} %; "

@@ -785,7 +785,16 @@ def open_sequence(path: str | os.PathLike[str]) -> MultiViewSequence:
     FormatError
         A file is malformed or truncated, a field is missing or wrong, arrays have the wrong
         shape, or an archive misses frames (the message names the file and the field or entry).
+
+    Notes
+    -----
+    ``humaneva:...`` and ``leewalk:...`` dataset specs are opened by the dataset readers
+    (:func:`swarmpose.datasets.open_dataset_sequence`) into the same type, read lazily.
     """
+    if os.fspath(path).startswith(("humaneva:", "leewalk:")):
+        from swarmpose.datasets import open_dataset_sequence
+
+        return open_dataset_sequence(os.fspath(path))
     root = Path(path)
     if not root.is_dir():
         raise DataError(f"{root}: no such sequence folder")

@@ -34,8 +34,9 @@ class Job:
     resume: bool = False
 
 
-def resolve_sequence(source: str | Path, *, cache_dir: Path | None = None, progress: bool = True) -> Path:
-    """A sequence folder as is; a ``.bvh`` clip is synthesised once with default settings into a cache."""
+def resolve_sequence(source: str | Path, *, cache_dir: Path | None = None, progress: bool = True) -> Path | str:
+    """A sequence folder as is; a ``.bvh`` clip is synthesised once with default settings into a cache;
+    ``humaneva:``/``leewalk:`` dataset specs are passed on to :func:`swarmpose.io.sequence.open_sequence`."""
     p = Path(source)
     if p.suffix.lower() == ".bvh":
         from swarmpose.synth.synthesize import cached_sequence
@@ -44,10 +45,8 @@ def resolve_sequence(source: str | Path, *, cache_dir: Path | None = None, progr
         if cache_dir is not None:
             kwargs["cache_dir"] = cache_dir
         return Path(cached_sequence(p, **kwargs))
-    if str(source).startswith("humaneva:"):
-        from swarmpose.datasets.humaneva import humaneva_sequence  # type: ignore[import-not-found]
-
-        return Path(humaneva_sequence(str(source)[len("humaneva:"):]))
+    if str(source).startswith(("humaneva:", "leewalk:")):
+        return str(source)  # type: ignore[return-value]  # opened lazily by open_sequence
     return p
 
 

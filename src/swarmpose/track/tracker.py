@@ -110,26 +110,31 @@ class TrackSetup:
     model: BodyModel
     frame_indices: np.ndarray
     frame_times: np.ndarray
-    gt_joints: np.ndarray
+    gt_joints: np.ndarray  # (T, 15, 3); NaN rows where the ground truth is invalid (HumanEva)
     ik_params: np.ndarray
     ik_error_mm: np.ndarray
     world_from_source: np.ndarray
     evals_per_frame: int
 
     @property
+    def valid(self) -> np.ndarray:
+        """``(T,)`` frames whose ground truth is finite: errors and the IK floor use only these."""
+        return np.isfinite(self.gt_joints).all(axis=(1, 2))
+
+    @property
     def ik_floor_mm(self) -> float:
-        return float(self.ik_error_mm.mean())
+        return float(np.nanmean(self.ik_error_mm[self.valid].mean(axis=1)))
 
 
 def _subject_for(seq: Any, spec) -> Subject:
-    from swarmpose.body.subject import subject_from_clip
+    """The subject from the source BVH skeleton when there is one, else from the 15-joint ground truth."""
+    from swarmpose.body.subject import subject_from_clip, subject_from_joints
     from swarmpose.io.mocap import load_clip
 
     clip_path = getattr(seq, "source_clip", None)
-    if clip_path is None or not Path(clip_path).is_file():
-        raise DataError(f"sequence {seq.path if hasattr(seq, 'path') else seq}: its source clip "
-                        f"({clip_path}) is needed to measure the subject and was not found")
-    return subject_from_clip(spec, load_clip(clip_path))
+    if clip_path is not None and Path(clip_path).is_file():
+        return subject_from_clip(spec, load_clip(clip_path))
+    return subject_from_joints(spec, np.asarray(seq.gt_joints), name=str(getattr(seq, "path", "subject")))
 
 
 def prepare_track(sequence_path: str | Path, config: TrackConfig, out_dir: Path | None = None) -> TrackSetup:
@@ -156,8 +161,14 @@ def prepare_track(sequence_path: str | Path, config: TrackConfig, out_dir: Path 
             with np.load(ik_file, allow_pickle=False) as z:
                 ik_params, ik_err = z["params"], z["joint_error_mm"]
         else:
-            ik = fit_ik(model, gt)
-            ik_params, ik_err = ik.params, ik.joint_error_mm
+            valid = np.isfinite(gt).all(axis=(1, 2))
+            if not valid[0]:
+                raise DataError(f"{sequence_path}: the ground truth of the first tracked frame "
+                                f"({int(frames[0])}) is invalid; the start pose comes from it")
+            ik = fit_ik(model, gt[valid])
+            ik_params = np.full((len(gt), model.n_params), np.nan)
+            ik_err = np.full((len(gt), 15), np.nan)
+            ik_params[valid], ik_err[valid] = ik.params, ik.joint_error_mm
             if ik_file is not None:
                 out_dir.mkdir(parents=True, exist_ok=True)
                 _atomic_savez(ik_file, params=ik_params, joint_error_mm=ik_err, frame_indices=frames)
@@ -299,11 +310,14 @@ def run_tracker(
     result = RunResult(run=run, params=params[:done], joints=joints, scores=scores[:done],
                        evaluations=evals[:done], seconds=seconds[:done])
     if done == T:
-        errs = track_errors(joints, setup.gt_joints)
+        ok = setup.valid
+        errs = track_errors(joints[ok], setup.gt_joints[ok])
+        d_all = np.full(T, np.nan)
+        d_all[ok] = errs.d_per_frame
         result.errors = {**errs.summary(), "frames_per_s": result.frames_per_s,
                          "evals_per_frame": int(evals.max()), "ik_floor_mm": setup.ik_floor_mm}
         if run_dir is not None:
-            _write_run(run_dir, setup, result, errs.d_per_frame)
+            _write_run(run_dir, setup, result, d_all)
     return result
 
 
