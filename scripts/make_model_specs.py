@@ -122,6 +122,9 @@ OFFSETS = {
     "l_thigh": [0, 0, -410], "r_thigh": [0, 0, -410],
     "l_shank": [0, 0, -420], "r_shank": [0, 0, -420],
     "spine_to_thorax": [-20, 0, 430],
+    # torso cone axis: pelvis to the top of the shoulders (HumanEva's torso runs to the thorax origin at
+    # the top of the sternum; see swarmpose.body.subject for how a subject's value is measured)
+    "pelvis_to_torso_top": [-20, 0, 480],
     "l_thorax_to_shoulder": [-30, 180, 30], "r_thorax_to_shoulder": [-30, -180, 30],
     "l_upper_arm": [0, 0, -290], "r_upper_arm": [0, 0, -290],
     "l_forearm": [0, 0, -250], "r_forearm": [0, 0, -250],
@@ -136,7 +139,7 @@ CONES = {  # r_start, r_end, scale_x (depth), scale_y (width)
     "head": [95, 95, 1.0, 0.8],
 }
 CONE_LIST = [  # thesis Table 5.2 order
-    {"name": "torso", "joint": "pelvis", "axis": "spine_to_thorax", "side": "center"},
+    {"name": "torso", "joint": "pelvis", "axis": "pelvis_to_torso_top", "side": "center"},
     {"name": "l_thigh", "joint": "l_hip", "axis": "l_thigh", "side": "left"},
     {"name": "l_calf", "joint": "l_knee", "axis": "l_shank", "side": "left"},
     {"name": "r_thigh", "joint": "r_hip", "axis": "r_thigh", "side": "right"},

@@ -60,3 +60,16 @@ def test_tracking_starts_at_the_truth_and_stays_near_it(short_sequence, tmp_path
     assert setup.ik_floor_mm < 5.0
     res = run_tracker(setup, 0, None)
     assert res.errors["d_mean"] < 80.0, res.errors
+
+
+def test_track_command_json(short_sequence, tmp_path):
+    from typer.testing import CliRunner
+
+    from swarmpose.cli.app import app
+
+    res = CliRunner().invoke(app, ["track", str(short_sequence), "--algo", "apf", "--fps", "20", "--runs", "1",
+                                   "--workers", "1", "--out", str(tmp_path / "r"), "--json"])
+    assert res.exit_code == 0, res.output
+    data = json.loads(res.stdout.strip().splitlines()[-1])
+    assert data["algo"] == "apf" and data["fps"] == 20.0 and data["evals_per_frame"] == 1000
+    assert data["d_mean_mm"] > 0 and data["ik_floor_mm"] < data["d_mean_mm"]

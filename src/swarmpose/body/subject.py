@@ -12,6 +12,12 @@ model-frame vector ``(z, x, y)`` (x forward, y left, z up), times the clip's mm-
 * Cone radii are not in a skeleton: they are the spec's reference sizes (a 1.75 m adult) scaled
   by the subject's leg length over the reference leg length (documented approximation; the
   synthesis issue renders a different, detailed body on purpose).
+* The torso cone runs from the pelvis along the pelvis→thorax line up to the *top of the
+  shoulders*: the height of the shoulder joints plus the upper arm's radius (the humeral head).
+  HumanEva's torso length is pelvis → thorax origin at the top of the sternum; the CMU files'
+  thorax joint sits about 11 cm lower (amc2bvh drops the thorax bone), so the thorax point alone
+  would leave the cone's upper edge mid-chest, where an image has no edge to match (thesis sec.
+  5.1.2 lengthened the torso for the same reason).
 """
 
 from __future__ import annotations
@@ -41,6 +47,15 @@ def rest_positions(bvh: BvhClip) -> tuple[np.ndarray, np.ndarray]:
 def _model_vec(v: np.ndarray, mm_per_unit: float) -> tuple[float, float, float]:
     """CMU rest frame (x left, y up, z forward) → model frame (x forward, y left, z up), in mm."""
     return (float(v[2] * mm_per_unit), float(v[0] * mm_per_unit), float(v[1] * mm_per_unit))
+
+
+def _torso_top(offsets: dict, cones: dict) -> tuple[float, float, float]:
+    """Pelvis → top of the shoulders along the pelvis→thorax line (see the module docstring)."""
+    thorax = np.asarray(offsets["spine_to_thorax"], dtype=float)
+    shoulder_z = 0.5 * (offsets["l_thorax_to_shoulder"][2] + offsets["r_thorax_to_shoulder"][2])
+    arm_r = cones["l_upper_arm"][0] if "l_upper_arm" in cones else 0.0
+    top_z = thorax[2] + max(shoulder_z + arm_r, 0.0)
+    return tuple(float(v) for v in thorax * (top_z / thorax[2]))  # type: ignore[return-value]
 
 
 def subject_from_clip(spec: BodySpec, clip: MocapClip) -> Subject:
@@ -74,13 +89,13 @@ def subject_from_clip(spec: BodySpec, clip: MocapClip) -> Subject:
     head = pos[sm.head]
     offsets["neck_to_head"] = _model_vec(head - p("thorax"), s)
     offsets["head_to_top"] = _model_vec(p("head_top") - head, s)
-    offsets = {k: v for k, v in offsets.items() if k in spec.default_subject.offsets}
-
     ref = spec.default_subject.offsets
     ref_leg = -(ref["l_thigh"][2] + ref["l_shank"][2])
     leg = -(offsets["l_thigh"][2] + offsets["l_shank"][2])
     ratio = leg / ref_leg
     cones = {name: (r0 * ratio, r1 * ratio, sx, sy) for name, (r0, r1, sx, sy) in spec.default_subject.cones.items()}
+    offsets["pelvis_to_torso_top"] = _torso_top(offsets, cones)
+    offsets = {k: v for k, v in offsets.items() if k in spec.default_subject.offsets}
     return Subject(name=clip.name, offsets=offsets, cones=cones,
                    source=f"rest pose of {clip.source_path}; cone radii = reference x {ratio:.3f}")
 
@@ -130,9 +145,10 @@ def subject_from_joints(spec: BodySpec, joints15: np.ndarray, name: str = "subje
         offsets[f"{side}_shank"] = (0.0, 0.0, -length(f"{side}_knee", f"{side}_ankle"))
         offsets[f"{side}_upper_arm"] = (0.0, 0.0, -length(f"{side}_shoulder", f"{side}_elbow"))
         offsets[f"{side}_forearm"] = (0.0, 0.0, -length(f"{side}_elbow", f"{side}_wrist"))
-    offsets = {k: v for k, v in offsets.items() if k in spec.default_subject.offsets}
     ref = spec.default_subject.offsets
     ratio = -(offsets["l_thigh"][2] + offsets["l_shank"][2]) / -(ref["l_thigh"][2] + ref["l_shank"][2])
     cones = {n: (r0 * ratio, r1 * ratio, sx, sy) for n, (r0, r1, sx, sy) in spec.default_subject.cones.items()}
+    offsets["pelvis_to_torso_top"] = _torso_top(offsets, cones)
+    offsets = {k: v for k, v in offsets.items() if k in spec.default_subject.offsets}
     return Subject(name=name, offsets=offsets, cones=cones,
                    source=f"15-joint ground truth ({len(g)} frames); cone radii = reference x {ratio:.3f}")

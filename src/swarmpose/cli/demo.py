@@ -7,7 +7,7 @@ from pathlib import Path
 import typer
 
 from swarmpose.cli.app import app
-from swarmpose.cli.common import console, fail_on_user_error
+from swarmpose.cli.common import console, fail_on_user_error, print_json
 
 DEFAULT_CLIP = Path(__file__).resolve().parents[3].parent / "shared" / "data" / "mocap" / "cmu_16_16_walk.bvh"
 
@@ -16,18 +16,46 @@ DEFAULT_CLIP = Path(__file__).resolve().parents[3].parent / "shared" / "data" / 
 @fail_on_user_error
 def demo(
     clip: Path = typer.Option(DEFAULT_CLIP, help="BVH clip to run on (default: the shared walking clip)."),
-    out: Path = typer.Option(Path("results/demo"), help="Output folder."),
+    out: Path = typer.Option(Path("results/demo"), help="Results folder."),
+    algo: str = typer.Option("sppso", help="Algorithm (see `swarmpose algorithms`)."),
+    fps: float = typer.Option(20.0, help="Tracking frame rate."),
+    runs: int = typer.Option(3, min=1, help="Independent runs."),
+    seed: int = typer.Option(0, help="Seed."),
+    json_out: bool = typer.Option(False, "--json", help="Print one JSON object with the summary and paths."),
 ) -> None:
-    """Run the demo: load the walking clip, fit the body model (IK floor) and write the results.
+    """Synthesise the walking clip (cached), track it with SPPSO at 20 fps, write results and a report.
 
-    Until the tracker lands this runs the richest pipeline that exists: BVH loading, the 15-joint
-    ground truth, subject measurement and inverse kinematics of ``balan31``.
+    Steps: render the clip's real motion capture into 4 HumanEva-like cameras (once; cached under
+    cache/sequences), fit the IK floor, track every run in parallel, then write the error graphs,
+    per-joint plot, overlay images and summary.md into OUT/report/.
     """
-    from swarmpose.cli.clip_commands import ik, info
+    from swarmpose.report import make_report
+    from swarmpose.track.runner import resolve_sequence, track_runs
+    from swarmpose.track.tracker import TrackConfig
 
     if not Path(clip).is_file():
         raise FileNotFoundError(f"demo clip {clip} not found: the shared data folder must sit beside the repo")
-    info(clip=clip, unit=None, json_out=False)
-    out.mkdir(parents=True, exist_ok=True)
-    ik(clip=clip, model="balan31", fps=60.0, out=out / "ik_balan31.npz", unit=None, json_out=False)
-    console.print(f"[green]demo finished[/green]: results in {out}/")
+    seq = resolve_sequence(clip, progress=not json_out)
+    summary = track_runs(seq, TrackConfig(algo=algo, fps=fps, seed=seed), runs, out, resume=False,
+                         progress=not json_out) if not (out / "summary.json").is_file() else _reuse(out)
+    paths = make_report(out, overlay_frames=4)
+    data = {**summary, "report": str(paths.summary), "figures": [str(p) for p in paths.figures],
+            "overlays": [str(p) for p in paths.overlays]}
+    if json_out:
+        print_json(data)
+        return
+    console.print(f"[bold]{algo}[/bold] on {Path(clip).name} at {fps:g} fps, {runs} runs, "
+                  f"{summary['evals_per_frame']} evaluations per frame")
+    console.print(f"  D_mean {summary['d_mean_mm']:.1f} mm, D_max {summary['d_max_mm']:.1f} mm, "
+                  f"IK floor {summary['ik_floor_mm']:.1f} mm, MMTA {100 * summary['mmta']:.1f} %, "
+                  f"{summary['frames_per_s']:.2f} frames/s per run")
+    console.print(f"  report: {paths.summary}")
+    for p in [*paths.figures, *paths.overlays]:
+        console.print(f"    {p}")
+
+
+def _reuse(out: Path) -> dict:
+    import json
+
+    console.print(f"[yellow]{out}/summary.json exists: reusing the tracked runs (delete the folder to redo)[/yellow]")
+    return json.loads((out / "summary.json").read_text())

@@ -1,0 +1,80 @@
+"""``swarmpose bench fitness``: evaluations per second of the fitness backends, and frame preparation."""
+
+from __future__ import annotations
+
+import typer
+
+from swarmpose.cli.app import app
+from swarmpose.cli.common import console, err_console, fail_on_user_error, print_json
+
+bench_app = typer.Typer(help="Benchmarks (fitness throughput).", no_args_is_help=True)
+app.add_typer(bench_app, name="bench")
+
+
+def _ints(text: str, name: str) -> list[int]:
+    from swarmpose.errors import ConfigError
+
+    try:
+        vals = [int(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise ConfigError(f"--{name} must be comma-separated integers, got {text!r}") from None
+    if not vals or min(vals) < 1:
+        raise ConfigError(f"--{name} must be positive integers, got {text!r}")
+    return vals
+
+
+@bench_app.command("fitness")
+@fail_on_user_error
+def fitness(
+    backends: str = typer.Option("numba,reference", help="Comma-separated backends; 'reference' gives the ratios."),
+    scales: str = typer.Option("1,2,4", help="Downsampling factors of 644x484 (1 full, 2 half, 4 quarter)."),
+    batches: str = typer.Option("20,200", help="Batch sizes (poses per call)."),
+    views: int = typer.Option(4, help="Number of camera views."),
+    repeats: int = typer.Option(5, help="Timing runs per measurement (the median is reported)."),
+    min_time: float = typer.Option(0.3, help="Seconds per timing run."),
+    reference_max_batch: int = typer.Option(200, help="Time the reference backend on at most this many poses."),
+    seed: int = typer.Option(0, help="Seed of the demo scene and the candidate poses."),
+    json_out: bool = typer.Option(False, "--json", help="Print one JSON object instead of a table."),
+) -> None:
+    """Evaluations/s of each fitness backend (kinematics + projection + silhouette + edge, all views)."""
+    from swarmpose.errors import ConfigError
+    from swarmpose.fitness import BACKENDS
+    from swarmpose.fitness.bench import run_fitness_benchmark
+
+    names = [b.strip() for b in backends.split(",") if b.strip()]
+    unknown = [b for b in names if b not in BACKENDS]
+    if unknown or not names:
+        raise ConfigError(f"unknown backend(s) {unknown or backends!r} (known: {', '.join(BACKENDS)})")
+    if views < 1 or repeats < 1 or min_time < 0 or reference_max_batch < 1:
+        raise ConfigError("--views, --repeats and --reference-max-batch must be >= 1, --min-time >= 0")
+
+    def say(msg: str) -> None:
+        if not json_out:
+            err_console.print(f"[dim]{msg}…[/dim]", highlight=False)
+
+    res = run_fitness_benchmark(backends=names, scales=_ints(scales, "scales"), batches=_ints(batches, "batches"),
+                                n_views=views, repeats=repeats, min_time=min_time,
+                                reference_max_batch=reference_max_batch, seed=seed, progress=say)
+    if json_out:
+        print_json(res)
+        return
+    from rich.table import Table
+
+    m = res["machine"]
+    console.print(f"[bold]machine[/bold]: {m['cpu']}, {m['cpu_count']} CPUs, numba {m['numba']} "
+                  f"({m['numba_threads']} threads, {m['numba_threading_layer']}), numpy {m['numpy']}, "
+                  f"OpenCV {m['opencv']}, Python {m['python']}; load average {m['loadavg_start']} -> "
+                  f"{m['loadavg_end']}", highlight=False)
+    table = Table(title=f"fitness evaluations/s ({views} views, silhouette + edge, incl. kinematics)")
+    for col in ("backend", "resolution", "batch", "evals/s", "x reference", "frames/s at 1000 evals"):
+        table.add_column(col, justify="right" if col != "backend" else "left")
+    for r in res["rows"]:
+        ratio = r["ratio_to_reference"]
+        table.add_row(r["backend"], f"{r['width']}x{r['height']}", str(r["batch"]), f"{r['evals_per_s']:,.0f}",
+                      "-" if ratio is None else f"{ratio:,.1f}", f"{r['evals_per_s'] / 1000:.1f}")
+    console.print(table)
+    p = res["prepare"]
+    levels = ", ".join(f"{k}: {v:.1f} ms" for k, v in p["levels"].items())
+    console.print(f"frame preparation ({views} raw 644x484 images -> features + prefix sums): "
+                  f"{res['prepare_ms']:.1f} ms (features {p['features_ms']:.1f} ms, prefix sums "
+                  f"{p['prefix_ms']:.2f} ms); per level: {levels}", highlight=False)

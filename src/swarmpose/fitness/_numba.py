@@ -1,0 +1,299 @@
+"""The fused numba kernel of the default CPU backend: outlines + scanline silhouette + edge samples.
+
+One parallel pass over the poses (``prange``, all cores), views inside: build the ``K`` cone outlines
+(:func:`swarmpose.render._kernels.cone_outline`), then
+
+* silhouette counts ``Y = |O & P|`` and ``P = |P|`` by the scanline rule (row spans of every outline,
+  merged per row, ``Y`` read from the row prefix sums of ``O``; no mask is ever built),
+* edge sums over the visible sample points (thesis eq. 5.1; Deutscher & Reid eq. 14),
+* foreground SSD over the interior grid points (Deutscher & Reid eq. 15),
+
+all with the exact definitions of :mod:`swarmpose.render` (tested against
+:mod:`swarmpose.render.reference`). Kinematics (:func:`swarmpose.body.kinematics.fk_pose_into`) runs
+inside the same kernel, once per pose.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+
+from swarmpose.body.kinematics import fk_pose_into
+from swarmpose.render._kernels import (
+    axis_depth_at,
+    clip_segment,
+    cone_outline,
+    hidden,
+    n_samples,
+    pixel_value,
+    silhouette_counts,
+)
+
+__all__ = ["eval_kernel", "eval_share", "row_prefix_sums"]
+
+
+@nb.njit(cache=True, nogil=True)
+def row_prefix_sums(sil, out):
+    """``out[c, y, x] = sum(sil[c, y, :x])`` for ``sil (C, H, W)`` into ``out (C, H, W + 1)``."""
+    C, H, W = sil.shape
+    for c in range(C):
+        for y in range(H):
+            acc = 0
+            out[c, y, 0] = 0
+            for x in range(W):
+                acc += sil[c, y, x]
+                out[c, y, x + 1] = acc
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _edge_point(x, y, z, k, c, edges, valid, K, poly, nvs, bbox, axis, orient, acc):
+    """Add one edge sample: acc[0] += p, acc[1] += (1 - p)^2, acc[2] += 1 unless hidden."""
+    if hidden(x, y, z, k, valid, K, poly, nvs, bbox, axis, orient):
+        return
+    p = pixel_value(edges, c, x, y)
+    acc[0] += p
+    acc[1] += (1.0 - p) * (1.0 - p)
+    acc[2] += 1.0
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _edge_line(px, py, pz, qx, qy, qz, spacing, k, c, edges, valid, K, poly, nvs, bbox, axis, orient,
+               occ, t_in, t_out):
+    """Samples at ``t = (i + 1/2) / n`` on the silhouette line ``p -> q`` of cone ``k``.
+
+    Occlusion as in :func:`swarmpose.render._kernels.hidden`, but the footprint test is done once per
+    (line, other cone) by clipping the line to the other outline; per sample only the depth
+    comparison with the few cones that cover part of the line remains (``occ``, ``t_in``, ``t_out``:
+    ``(K,)`` scratch). Returns ``(sum p, sum (1 - p)^2, count)`` over the visible samples.
+    """
+    L = math.sqrt((qx - px) * (qx - px) + (qy - py) * (qy - py))
+    n = n_samples(L, spacing)
+    m = 0
+    zmax = max(pz, qz)
+    for j in range(K):
+        # cone j can hide a sample only if it is drawn and its axis is nearer somewhere than the line
+        if j == k or not valid[j] or min(axis[j, 0, 2], axis[j, 1, 2]) >= zmax:
+            continue
+        a, b = clip_segment(px, py, qx, qy, j, poly, nvs, bbox, orient)
+        if a <= b:
+            occ[m] = j
+            t_in[m] = a
+            t_out[m] = b
+            m += 1
+    s1 = 0.0
+    s2 = 0.0
+    cnt = 0.0
+    dx = qx - px
+    dy = qy - py
+    for i in range(n):
+        t = (i + 0.5) / n
+        x = px + t * dx
+        y = py + t * dy
+        hid = False
+        for q in range(m):
+            if t_in[q] <= t <= t_out[q] and axis_depth_at(occ[q], x, y, axis) < pz + t * (qz - pz):
+                hid = True
+                break
+        if hid:
+            continue
+        p = pixel_value(edges, c, x, y)
+        s1 += p
+        s2 += (1.0 - p) * (1.0 - p)
+        cnt += 1.0
+    return s1, s2, cnt
+
+
+@nb.njit(cache=True, nogil=True)
+def _edge_arc(k, i0, i1, closed, spacing, c, edges, valid, K, poly, nvs, bbox, axis, orient, acc):
+    """Samples at arc lengths ``(i + 1/2) L / n`` on the outline arc ``poly[k, i0:i1]`` (closed: back
+    to ``i0``)."""
+    m = i1 - i0 + (1 if closed else 0)
+    if m < 2:
+        return
+    L = 0.0
+    for q in range(m - 1):
+        a = i0 + q
+        b = i0 + q + 1 if i0 + q + 1 < i1 else i0
+        L += math.sqrt((poly[k, b, 0] - poly[k, a, 0]) ** 2 + (poly[k, b, 1] - poly[k, a, 1]) ** 2)
+    n = n_samples(L, spacing)
+    seg = 0
+    seg_start = 0.0
+    a = i0
+    b = i0 + 1 if i0 + 1 < i1 else i0
+    seg_len = math.sqrt((poly[k, b, 0] - poly[k, a, 0]) ** 2 + (poly[k, b, 1] - poly[k, a, 1]) ** 2)
+    for i in range(n):
+        s = (i + 0.5) * L / n
+        while s > seg_start + seg_len and seg < m - 2:
+            seg += 1
+            seg_start += seg_len
+            a = i0 + seg
+            b = i0 + seg + 1 if i0 + seg + 1 < i1 else i0
+            seg_len = math.sqrt((poly[k, b, 0] - poly[k, a, 0]) ** 2 + (poly[k, b, 1] - poly[k, a, 1]) ** 2)
+        t = (s - seg_start) / seg_len if seg_len > 0.0 else 0.0
+        t = min(max(t, 0.0), 1.0)
+        x = poly[k, a, 0] + t * (poly[k, b, 0] - poly[k, a, 0])
+        y = poly[k, a, 1] + t * (poly[k, b, 1] - poly[k, a, 1])
+        z = poly[k, a, 2] + t * (poly[k, b, 2] - poly[k, a, 2])
+        _edge_point(x, y, z, k, c, edges, valid, K, poly, nvs, bbox, axis, orient, acc)
+
+
+@nb.njit(cache=True, nogil=True)
+def _region(k, nv, spacing, c, sil, poly, sides, axis, info, acc):
+    """Deutscher & Reid interior grid of cone ``k``: acc[0] += (1 - O)^2, acc[1] += 1 per point."""
+    if info[k, 0] == 1:
+        p0x, p0y = sides[k, 0, 0, 0], sides[k, 0, 0, 1]
+        q0x, q0y = sides[k, 0, 1, 0], sides[k, 0, 1, 1]
+        p1x, p1y = sides[k, 1, 0, 0], sides[k, 1, 0, 1]
+        q1x, q1y = sides[k, 1, 1, 0], sides[k, 1, 1, 1]
+        la = math.sqrt((axis[k, 1, 0] - axis[k, 0, 0]) ** 2 + (axis[k, 1, 1] - axis[k, 0, 1]) ** 2)
+        nt = n_samples(la, spacing)
+        width = max(math.sqrt((p1x - p0x) ** 2 + (p1y - p0y) ** 2), math.sqrt((q1x - q0x) ** 2 + (q1y - q0y) ** 2))
+        ns = n_samples(width, spacing)
+        for i in range(nt):
+            t = (i + 0.5) / nt
+            lx = p0x + t * (q0x - p0x)
+            ly = p0y + t * (q0y - p0y)
+            rx = p1x + t * (q1x - p1x)
+            ry = p1y + t * (q1y - p1y)
+            for j in range(ns):
+                u = (j + 0.5) / ns
+                o = pixel_value(sil, c, lx + u * (rx - lx), ly + u * (ry - ly))
+                acc[0] += (1.0 - o) * (1.0 - o)
+                acc[1] += 1.0
+    else:
+        gx = 0.0
+        gy = 0.0
+        for i in range(nv):
+            gx += poly[k, i, 0]
+            gy += poly[k, i, 1]
+        gx /= nv
+        gy /= nv
+        o = pixel_value(sil, c, gx, gy)
+        acc[0] += (1.0 - o) * (1.0 - o)
+        acc[1] += 1.0
+        for i in range(nv):
+            o = pixel_value(sil, c, gx + 0.5 * (poly[k, i, 0] - gx), gy + 0.5 * (poly[k, i, 1] - gy))
+            acc[0] += (1.0 - o) * (1.0 - o)
+            acc[1] += 1.0
+
+
+@nb.njit(cache=True, nogil=True)
+def eval_share(th, nth, poses, parents, offsets, rot_axis, rot_sign, rot_param, trans_param,
+               joint, start, end, semi_a, semi_b, scale, Rc, tc, cam, ctab, stab, near,
+               prefix, sil, edges, edge_mask, top_cone, spacing, region_spacing,
+               do_sil, do_edge, do_region, counts, sums):
+    """Poses ``th, th + nth, ...`` of the batch (one thread's share): see :func:`eval_kernel`.
+
+    Releases the GIL (``nogil``), so Python threads can run shares in parallel
+    (:class:`swarmpose.fitness.backends.NumbaBackend` does, see there for why).
+    """
+    N = poses.shape[0]
+    C = Rc.shape[0]
+    K = joint.shape[0]
+    J = parents.shape[0]
+    H = edges.shape[1]
+    W = edges.shape[2]
+    P = 2 * ctab.shape[0] + 4
+    mine = (N - th + nth - 1) // nth  # poses th, th + nth, ...
+    Ts = np.empty((mine, J, 3, 4))
+    for i in range(mine):
+        fk_pose_into(poses[th + i * nth], parents, offsets, rot_axis, rot_sign, rot_param, trans_param, Ts[i])
+    poly = np.empty((K, P, 3))
+    sides = np.empty((K, 2, 2, 3))
+    axis = np.empty((K, 2, 3))
+    info = np.empty((K, 4), np.int64)
+    bbox = np.empty((K, 4))
+    orient = np.empty(K)
+    nvs = np.empty(K, np.int64)
+    valid = np.empty(K, np.bool_)
+    cnt = np.empty(H, np.int32)
+    bl = np.empty((H, K), np.int32)
+    br = np.empty((H, K), np.int32)
+    occ = np.empty(K, np.int64)
+    t_in = np.empty(K)
+    t_out = np.empty(K)
+    acc = np.empty(3)
+    racc = np.empty(2)
+    for c in range(C):  # views outside: one view's prefix sums and edge map stay in cache
+        for i in range(mine):
+            n = th + i * nth
+            T = Ts[i]
+            for k in range(K):
+                nvs[k] = cone_outline(T, joint, start, end, semi_a, semi_b, scale, Rc[c], tc[c], cam[c],
+                                      ctab, stab, near, k, poly, sides, axis, info, bbox, orient)
+                valid[k] = nvs[k] > 0
+            y_ = 0
+            p_ = 0
+            if do_sil:
+                y_, p_ = silhouette_counts(poly, nvs, valid, K, H, W, prefix, c, cnt, bl, br)
+            counts[n, c, 0] = y_
+            counts[n, c, 1] = p_
+            acc[:] = 0.0
+            if do_edge:
+                for k in range(K):
+                    if not valid[k]:
+                        continue
+                    if edge_mask[k] and info[k, 0] == 1:
+                        for sd in range(2):
+                            e1, e2, e3 = _edge_line(sides[k, sd, 0, 0], sides[k, sd, 0, 1], sides[k, sd, 0, 2],
+                                                    sides[k, sd, 1, 0], sides[k, sd, 1, 1], sides[k, sd, 1, 2],
+                                                    spacing, k, c, edges, valid, K, poly, nvs, bbox, axis,
+                                                    orient, occ, t_in, t_out)
+                            acc[0] += e1
+                            acc[1] += e2
+                            acc[2] += e3
+                    if k == top_cone:
+                        _edge_arc(k, info[k, 1], info[k, 2], info[k, 3] == 1, spacing, c, edges, valid, K,
+                                  poly, nvs, bbox, axis, orient, acc)
+            sums[n, c, 0] = acc[0]
+            sums[n, c, 1] = acc[1]
+            sums[n, c, 2] = acc[2]
+            racc[:] = 0.0
+            if do_region:
+                for k in range(K):
+                    if valid[k]:
+                        _region(k, nvs[k], region_spacing, c, sil, poly, sides, axis, info, racc)
+            sums[n, c, 3] = racc[0]
+            sums[n, c, 4] = racc[1]
+
+
+@nb.njit(cache=True, parallel=True, nogil=True)
+def eval_kernel(poses, parents, offsets, rot_axis, rot_sign, rot_param, trans_param,
+                joint, start, end, semi_a, semi_b, scale, Rc, tc, cam, ctab, stab, near,
+                prefix, sil, edges, edge_mask, top_cone, spacing, region_spacing,
+                do_sil, do_edge, do_region, n_threads, counts, sums):
+    """Per (pose, view) silhouette counts and edge/region sums, kinematics included.
+
+    Parameters
+    ----------
+    poses : (N, D) float64.
+    parents ... trans_param : kinematic tables (:class:`swarmpose.body.kinematics.KinematicArrays`).
+    joint ... scale : cone tables (:class:`swarmpose.render.project.ConeTables`).
+    Rc (C, 3, 3), tc (C, 3), cam (C, 11) : camera tables (:func:`swarmpose.render.project.camera_tables`).
+    ctab, stab : (n_rim,) rim grid cosines and sines; near : float.
+    prefix : (C, H, W + 1) int16/int32 row prefix sums of the observed silhouettes.
+    sil : (C, H, W) uint8 observed silhouettes; edges : (C, H, W) float32 edge maps.
+    edge_mask : (K,) bool cones edge-sampled; top_cone : int (-1: none); spacing, region_spacing : px.
+    do_sil, do_edge, do_region : bool, which parts to compute.
+    n_threads : int, ``numba.get_num_threads()`` (passed in: calling it here would defeat caching).
+
+    Outputs
+    -------
+    counts : (N, C, 2) int64 -- ``Y``, ``P``.
+    sums : (N, C, 5) float64 -- edge ``sum p``, ``sum (1 - p)^2``, visible sample count, region
+        ``sum (1 - O)^2``, region point count.
+
+    Notes
+    -----
+    Poses are dealt round-robin to the threads (``prange`` over the thread count): each thread
+    allocates its scratch once per call, computes its poses' kinematics once, then runs view by view
+    (so that view's prefix sums and edge map stay in the core's cache).
+    """
+    nth = max(1, min(n_threads, poses.shape[0]))
+    for th in nb.prange(nth):
+        eval_share(th, nth, poses, parents, offsets, rot_axis, rot_sign, rot_param, trans_param,
+                   joint, start, end, semi_a, semi_b, scale, Rc, tc, cam, ctab, stab, near,
+                   prefix, sil, edges, edge_mask, top_cone, spacing, region_spacing,
+                   do_sil, do_edge, do_region, counts, sums)

@@ -1,0 +1,330 @@
+"""Backends of the image fitness functions: one interface, a plain reference and the numba default.
+
+A backend turns a batch of poses into per-(pose, view) *measurements* (:class:`Measurements`:
+silhouette overlap and area, edge sums, Deutscher-Reid region sums); the fitness classes turn those
+into scores with the shared formulas of :mod:`swarmpose.fitness.base`. A GPU backend only has to
+implement :class:`ImageBackend` (``prepare`` and ``measure``) and be added to :data:`BACKENDS`;
+optimisers and the tracker never see it.
+
+* ``"reference"`` -- :class:`ReferenceBackend`: numpy kinematics, :mod:`swarmpose.render.reference`
+  outlines, per-pixel half-plane rasterisation of each footprint, numpy sums. Loops over poses and
+  views in Python; slow (tens of ms per pose), obviously right; what the tests compare against.
+* ``"numba"`` -- :class:`NumbaBackend` (default): numba kinematics (parallel over poses) and one fused
+  kernel (:func:`swarmpose.fitness._numba.eval_kernel`, parallel over (pose, view)) with the scanline
+  silhouette counter. ``cache=True``: compiled once per machine, about 1 s to load afterwards.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+import numba
+import numpy as np
+
+from swarmpose.camera import Camera
+from swarmpose.errors import ConfigError, ShapeError
+from swarmpose.features import FrameFeatures
+from swarmpose.render.project import (
+    DEFAULT_N_RIM,
+    DEFAULT_NEAR_MM,
+    ConeTables,
+    _check_n_rim,
+    camera_tables,
+    cone_tables,
+)
+
+__all__ = ["PreparedFrame", "prepare_frame", "Request", "Measurements", "ImageBackend", "ReferenceBackend",
+           "NumbaBackend", "BACKENDS", "make_backend"]
+
+
+@dataclass(eq=False)
+class PreparedFrame:
+    """Everything an image fitness needs from one frame, computed once (:func:`prepare_frame`).
+
+    Attributes
+    ----------
+    features : FrameFeatures
+        The bound observation.
+    cameras : list of Camera
+    R : (C, 3, 3), t : (C, 3), cam : (C, 11)
+        Camera tables for the kernels (:func:`swarmpose.render.project.camera_tables`).
+    width, height : int
+    silhouettes : (C, H, W) uint8, C-contiguous
+    edges : (C, H, W) float32, C-contiguous
+    prefix : (C, H, W + 1) int16 (int32 when W >= 32767)
+        Row prefix sums of the silhouettes: ``prefix[c, y, x] = sum(silhouettes[c, y, :x])``.
+    observed_area : (C,) int64
+        ``|O|`` per view (``R + Y`` of thesis eq. 5.5).
+    prepare_ms : float
+        Wall time of the preparation.
+    extra : dict
+        Backend-specific state (e.g. device arrays of a GPU backend).
+    """
+
+    features: FrameFeatures
+    cameras: list[Camera]
+    R: np.ndarray
+    t: np.ndarray
+    cam: np.ndarray
+    width: int
+    height: int
+    silhouettes: np.ndarray
+    edges: np.ndarray
+    prefix: np.ndarray
+    observed_area: np.ndarray
+    prepare_ms: float = 0.0
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def n_views(self) -> int:
+        """Number of views ``C``."""
+        return len(self.cameras)
+
+
+def prepare_frame(frame: FrameFeatures) -> PreparedFrame:
+    """Per-frame preparation: contiguous features, row prefix sums, ``|O|``, camera tables (timed).
+
+    Parameters
+    ----------
+    frame : FrameFeatures
+
+    Returns
+    -------
+    PreparedFrame
+
+    Raises
+    ------
+    ShapeError
+        ``frame`` is not a :class:`~swarmpose.features.FrameFeatures`.
+    """
+    if not isinstance(frame, FrameFeatures):
+        raise ShapeError(f"an image fitness binds a FrameFeatures, got {type(frame).__name__}")
+    from swarmpose.fitness._numba import row_prefix_sums
+
+    t0 = time.perf_counter()
+    sil = np.ascontiguousarray(frame.silhouettes, dtype=np.uint8)
+    edges = np.ascontiguousarray(frame.edges, dtype=np.float32)
+    C, H, W = sil.shape
+    dtype = np.int16 if W < np.iinfo(np.int16).max else np.int32  # int16 halves the kernels' cache footprint
+    prefix = np.empty((C, H, W + 1), dtype)
+    row_prefix_sums(sil, prefix)
+    area = prefix[:, :, -1].sum(axis=1, dtype=np.int64)
+    R, t, cam, w, h = camera_tables(frame.cameras)
+    prep = PreparedFrame(features=frame, cameras=list(frame.cameras), R=R, t=t, cam=cam, width=w, height=h,
+                         silhouettes=sil, edges=edges, prefix=prefix, observed_area=area)
+    prep.prepare_ms = (time.perf_counter() - t0) * 1e3
+    return prep
+
+
+@dataclass(frozen=True)
+class Request:
+    """What to measure for a batch.
+
+    Attributes
+    ----------
+    edge_mask : (K,) bool
+        Cones whose silhouette lines are edge-sampled.
+    top_cone : int
+        Cone whose end-cap arc is also sampled (the torso's upper edge), ``-1`` for none.
+    silhouette, edge, region : bool
+        Compute the silhouette counts / the edge sums / the Deutscher-Reid interior sums.
+    edge_spacing, region_spacing : float
+        Sample spacing in pixels.
+    """
+
+    edge_mask: np.ndarray
+    top_cone: int
+    silhouette: bool = True
+    edge: bool = True
+    region: bool = False
+    edge_spacing: float = 5.0
+    region_spacing: float = 8.0
+
+
+@dataclass
+class Measurements:
+    """Per (pose, view) raw measurements, all ``(N, C)``.
+
+    Attributes
+    ----------
+    overlap : int64 -- ``Y = |O & P|`` (thesis eq. 5.4).
+    projected : int64 -- ``|P| = B + Y``.
+    edge_sum : float64 -- sum of edge-map values over the visible edge samples.
+    edge_sq : float64 -- sum of ``(1 - p)^2`` over them (Deutscher & Reid eq. 14).
+    edge_count : float64 -- number of visible edge samples.
+    region_sq : float64 -- sum of ``(1 - O)^2`` over the interior points (Deutscher & Reid eq. 15).
+    region_count : float64 -- number of interior points.
+    """
+
+    overlap: np.ndarray
+    projected: np.ndarray
+    edge_sum: np.ndarray
+    edge_sq: np.ndarray
+    edge_count: np.ndarray
+    region_sq: np.ndarray
+    region_count: np.ndarray
+
+
+class ImageBackend(Protocol):
+    """What a backend implements. Constructed with ``(model, *, n_rim, near)``."""
+
+    name: str
+
+    def prepare(self, frame: FrameFeatures) -> PreparedFrame: ...
+
+    def measure(self, prepared: PreparedFrame, poses: np.ndarray, request: Request) -> Measurements: ...
+
+
+class _BackendBase:
+    name = "base"
+
+    def __init__(self, model, *, n_rim: int = DEFAULT_N_RIM, near: float = DEFAULT_NEAR_MM):
+        self.model = model
+        self.n_rim = _check_n_rim(n_rim)
+        self.near = float(near)
+        self.cones: ConeTables = cone_tables(model)
+
+    def prepare(self, frame: FrameFeatures) -> PreparedFrame:
+        """:func:`prepare_frame`."""
+        return prepare_frame(frame)
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}(model={self.model.name!r}, n_rim={self.n_rim})"
+
+
+class ReferenceBackend(_BackendBase):
+    """Plain reference: numpy geometry, per-pixel footprint rasterisation, numpy sums (slow)."""
+
+    name = "reference"
+
+    def measure(self, prepared: PreparedFrame, poses: np.ndarray, request: Request) -> Measurements:
+        """Measurements of ``poses (N, D)`` (see :class:`Measurements`)."""
+        from swarmpose.render.reference import (
+            edge_samples_reference,
+            nearest_pixel_values,
+            reference_geometry,
+            region_samples_reference,
+            union_mask,
+        )
+
+        geom = reference_geometry(self.model, poses, prepared.cameras, n_rim=self.n_rim, near=self.near)
+        N, C = geom.cones.n_vertices.shape[:2]
+        out = _empty(N, C)
+        for n in range(N):
+            for c in range(C):
+                if request.silhouette:
+                    mask = union_mask(geom, n, c)
+                    out.projected[n, c] = np.count_nonzero(mask)
+                    out.overlap[n, c] = np.count_nonzero(mask & (prepared.silhouettes[c] != 0))
+                if request.edge:
+                    xy, _, _, vis = edge_samples_reference(geom, n, c, request.edge_mask, request.top_cone,
+                                                           request.edge_spacing)
+                    p = nearest_pixel_values(prepared.edges[c], xy[vis])
+                    out.edge_sum[n, c] = p.sum()
+                    out.edge_sq[n, c] = ((1.0 - p) ** 2).sum()
+                    out.edge_count[n, c] = len(p)
+                if request.region:
+                    xy = region_samples_reference(geom, n, c, request.region_spacing)
+                    o = nearest_pixel_values(prepared.silhouettes[c], xy)
+                    out.region_sq[n, c] = ((1.0 - o) ** 2).sum()
+                    out.region_count[n, c] = len(o)
+        return out
+
+
+class NumbaBackend(_BackendBase):
+    """Default CPU backend: numba kinematics + the fused scanline/edge kernel on all cores.
+
+    Parameters
+    ----------
+    model : BodyModel
+    n_rim, near : see :func:`swarmpose.render.project_cones`.
+    threads : {"pool", "prange", "serial"}, default "pool"
+        How the batch is spread over the cores. ``"pool"``: the poses are dealt to
+        ``numba.get_num_threads()`` threads (the calling one and a pool), each running the GIL-free
+        serial kernel :func:`~swarmpose.fitness._numba.eval_share`; idle threads sleep. ``"prange"``: numba's own
+        parallel loop (:func:`~swarmpose.fitness._numba.eval_kernel`); as fast on an idle machine, but
+        with numba's default OpenMP layer its idle threads spin, and when other processes compete
+        for the cores a batch can take 5-10x longer (measured on the 2-core reference machine at load
+        average 7). ``"serial"``: one core.
+    """
+
+    name = "numba"
+    _pool = None  # shared ThreadPoolExecutor, created on first use (per process: see _executor)
+    _pool_pid = -1
+
+    def __init__(self, model, *, n_rim: int = DEFAULT_N_RIM, near: float = DEFAULT_NEAR_MM,
+                 threads: str = "pool"):
+        super().__init__(model, n_rim=n_rim, near=near)
+        from swarmpose.render._kernels import rim_tables
+
+        if threads not in ("pool", "prange", "serial"):
+            raise ConfigError(f"threads must be 'pool', 'prange' or 'serial', got {threads!r}")
+        self.threads = threads
+        self._ctab, self._stab = rim_tables(self.n_rim)
+
+    @classmethod
+    def _executor(cls, n: int):
+        # a pool inherited through fork() has no threads in the child: make a new one there
+        if cls._pool is None or cls._pool._max_workers < n or cls._pool_pid != os.getpid():
+            from concurrent.futures import ThreadPoolExecutor
+
+            cls._pool = ThreadPoolExecutor(max_workers=n, thread_name_prefix="swarmpose-fitness")
+            cls._pool_pid = os.getpid()
+        return cls._pool
+
+    def measure(self, prepared: PreparedFrame, poses: np.ndarray, request: Request) -> Measurements:
+        """Measurements of ``poses (N, D)`` (see :class:`Measurements`)."""
+        from swarmpose.fitness._numba import eval_kernel, eval_share
+
+        p = np.ascontiguousarray(poses, dtype=np.float64)
+        N, C = p.shape[0], prepared.n_views
+        counts = np.empty((N, C, 2), np.int64)
+        sums = np.empty((N, C, 5))
+        args = (p, *self.model.kin.as_tuple(), *self.cones.as_tuple(), prepared.R, prepared.t, prepared.cam,
+                self._ctab, self._stab, self.near, prepared.prefix, prepared.silhouettes, prepared.edges,
+                request.edge_mask, int(request.top_cone), float(request.edge_spacing),
+                float(request.region_spacing), bool(request.silhouette), bool(request.edge), bool(request.region))
+        nth = max(1, min(numba.get_num_threads(), N)) if self.threads != "serial" else 1
+        if self.threads == "prange" and nth > 1:
+            eval_kernel(*args, nth, counts, sums)
+        elif nth == 1:
+            eval_share(0, 1, *args, counts, sums)
+        else:
+            # shares 1..nth-1 on the pool, share 0 on this thread (one hand-off fewer)
+            futures = [self._executor(nth - 1).submit(eval_share, th, nth, *args, counts, sums)
+                       for th in range(1, nth)]
+            eval_share(0, nth, *args, counts, sums)
+            for f in futures:
+                f.result()
+        return Measurements(overlap=counts[..., 0], projected=counts[..., 1], edge_sum=sums[..., 0],
+                            edge_sq=sums[..., 1], edge_count=sums[..., 2], region_sq=sums[..., 3],
+                            region_count=sums[..., 4])
+
+
+def _empty(N: int, C: int) -> Measurements:
+    z = np.zeros((N, C))
+    return Measurements(overlap=np.zeros((N, C), np.int64), projected=np.zeros((N, C), np.int64),
+                        edge_sum=z.copy(), edge_sq=z.copy(), edge_count=z.copy(), region_sq=z.copy(),
+                        region_count=z.copy())
+
+
+#: Registered image backends by name.
+BACKENDS: dict[str, type[_BackendBase]] = {"reference": ReferenceBackend, "numba": NumbaBackend}
+
+
+def make_backend(name: str, model, **kwargs) -> ImageBackend:
+    """Instantiate a registered backend.
+
+    Raises
+    ------
+    ConfigError
+        Unknown name (the message lists the known ones).
+    """
+    try:
+        cls = BACKENDS[name]
+    except (KeyError, TypeError):
+        raise ConfigError(f"unknown fitness backend {name!r} (known: {', '.join(BACKENDS)})") from None
+    return cls(model, **kwargs)

@@ -1,0 +1,143 @@
+"""The fitness contract, per-stage options and the score formulas shared by every backend."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+from swarmpose.errors import ConfigError, ShapeError
+
+__all__ = ["Fitness", "ImageOptions", "parse_image_options", "TERMS", "silhouette_score", "edge_score",
+           "deutscher_reid_weight", "check_scores"]
+
+#: Values of the ``"terms"`` option.
+TERMS = ("silhouette+edge", "silhouette", "edge")
+_OPTION_KEYS = ("edge_cones", "edge_top", "terms")
+
+
+@runtime_checkable
+class Fitness(Protocol):
+    """A batched fitness for one frame (``shared/design.md`` §2): higher is better.
+
+    ``bind(frame)`` installs the observation (image fitness: a
+    :class:`~swarmpose.features.FrameFeatures`; marker fitness: a
+    :class:`~swarmpose.fitness.markers.MarkerFrame`) and prepares everything per-frame once; then
+    ``fitness(poses (N, D)) -> (N,) float64`` and ``fitness.evaluate(poses, options) -> (N,)`` where
+    ``options`` is the optimiser's per-stage mapping (``opt.fitness_options``).
+    """
+
+    def bind(self, frame: Any) -> Fitness: ...
+
+    def __call__(self, poses: np.ndarray) -> np.ndarray: ...
+
+    def evaluate(self, poses: np.ndarray, options: Mapping[str, Any] | None = None) -> np.ndarray: ...
+
+
+@dataclass(frozen=True)
+class ImageOptions:
+    """Per-stage variant of an image fitness.
+
+    Attributes
+    ----------
+    edge_cones : str or tuple of str
+        ``"all"`` (every cone but the head), ``"torso"`` (SPPSO stage 1), ``"torso+upper"`` (torso,
+        thighs, upper arms: stage 2 of the 3-partition SPPSO, thesis Table 6.3; alias
+        ``"torso+upper_limbs"``) or explicit cone names.
+    edge_top : bool
+        Also sample the torso's upper edge (thesis sec. 5.2.1, 6.10; on in every SPPSO stage).
+    terms : {"silhouette+edge", "silhouette", "edge"}
+        Which terms of ``f = f_s + f_e`` are evaluated (the missing one counts as 0).
+    """
+
+    edge_cones: str | tuple[str, ...] = "all"
+    edge_top: bool = True
+    terms: str = "silhouette+edge"
+
+    def __post_init__(self) -> None:
+        if self.terms not in TERMS:
+            raise ConfigError(f"unknown fitness terms {self.terms!r} (known: {', '.join(TERMS)})")
+        if not isinstance(self.edge_top, (bool, np.bool_)):
+            raise ConfigError(f"edge_top must be a bool, got {self.edge_top!r}")
+        if not isinstance(self.edge_cones, str):
+            object.__setattr__(self, "edge_cones", tuple(self.edge_cones))
+
+
+def parse_image_options(options: Mapping[str, Any] | None, default: ImageOptions) -> ImageOptions:
+    """Overlay a per-stage ``options`` mapping on ``default``.
+
+    Raises
+    ------
+    ConfigError
+        An unknown key (the message lists the known ones) or a bad value.
+    """
+    if not options:
+        return default
+    unknown = [k for k in options if k not in _OPTION_KEYS]
+    if unknown:
+        raise ConfigError(f"unknown fitness option(s) {unknown} (known: {', '.join(_OPTION_KEYS)})")
+    return ImageOptions(edge_cones=options.get("edge_cones", default.edge_cones),
+                        edge_top=bool(options.get("edge_top", default.edge_top)),
+                        terms=options.get("terms", default.terms))
+
+
+def silhouette_score(Y: np.ndarray, P: np.ndarray, O: np.ndarray, a: float = 0.5) -> np.ndarray:
+    """Bidirectional silhouette fitness, thesis eq. 5.2-5.5 (Sigal et al. 2010).
+
+    ``f_s = (1 - a) Y / (B + Y) + a Y / (R + Y)`` with ``B + Y = P`` (projected area) and
+    ``R + Y = O`` (observed area). A term whose denominator is 0 counts as 0 (nothing to overlap),
+    except that both silhouettes empty is a perfect match (``f_s = 1``). Never NaN.
+
+    Parameters
+    ----------
+    Y, P : (N, C) array_like
+        Overlap ``|O & P|`` and projected area ``|P|`` per pose and view (pixels).
+    O : (C,) array_like
+        Observed area ``|O|`` per view.
+    a : float, default 0.5
+        Weight of the observed-coverage term.
+
+    Returns
+    -------
+    (N, C) float64 in [0, 1]
+    """
+    Y = np.asarray(Y, np.float64)
+    P = np.asarray(P, np.float64)
+    O = np.broadcast_to(np.asarray(O, np.float64), Y.shape)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        tb = np.where(P > 0, Y / P, 0.0)  # Y / (B + Y)
+        tr = np.where(O > 0, Y / O, 0.0)  # Y / (R + Y)
+    f = (1.0 - a) * tb + a * tr
+    return np.where((P == 0) & (O == 0), 1.0, f)
+
+
+def edge_score(edge_sum: np.ndarray, count: np.ndarray) -> np.ndarray:
+    """Edge fitness, thesis eq. 5.1: mean edge-map value over the visible sample points; 0 where no
+    sample is visible. ``(N, C)`` -> ``(N, C)``."""
+    edge_sum = np.asarray(edge_sum, np.float64)
+    count = np.asarray(count, np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(count > 0, edge_sum / np.maximum(count, 1.0), 0.0)
+
+
+def deutscher_reid_weight(edge_sq: np.ndarray, edge_count: np.ndarray, region_sq: np.ndarray,
+                          region_count: np.ndarray) -> np.ndarray:
+    """Deutscher & Reid (2005) eq. 14-17: ``w = exp(-sum_views (Sigma^e + Sigma^r))``.
+
+    ``Sigma^e = mean (1 - p^e)^2`` over the visible edge samples (eq. 14), ``Sigma^r = mean (1 - p^r)^2``
+    over the interior points (eq. 15); a view with no sample of a kind contributes 1 for it (no
+    evidence: the largest SSD). Inputs ``(N, C)``; returns ``(N,)`` in ``(0, 1]``.
+    """
+    se = np.where(edge_count > 0, edge_sq / np.maximum(edge_count, 1.0), 1.0)
+    sr = np.where(region_count > 0, region_sq / np.maximum(region_count, 1.0), 1.0)
+    return np.exp(-(se + sr).sum(axis=1))
+
+
+def check_scores(scores: np.ndarray, n: int) -> np.ndarray:
+    """Return ``scores`` as a finite float64 ``(n,)`` array, or raise :class:`ShapeError`."""
+    s = np.asarray(scores, np.float64)
+    if s.shape != (n,):
+        raise ShapeError(f"fitness must return shape ({n},), got {s.shape}")
+    return s

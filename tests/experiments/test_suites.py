@@ -1,0 +1,57 @@
+"""Experiment suites: variants keep or state their budgets; every suite is well formed."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from swarmpose import optim
+from swarmpose.body.model import load_model
+from swarmpose.errors import ConfigError
+from swarmpose.experiments.suites import SUITES, apply_variant, parse_fitness_options, suite
+
+
+@pytest.fixture(scope="module")
+def model():
+    return load_model("balan31")
+
+
+@pytest.mark.parametrize(("variant", "evals"), [("", 1000), ("budget=2000", 2000), ("budget=4000", 4000),
+                                                ("stage2=2x400", 1000), ("stage2=400x2", 1000),
+                                                ("stage2=40x20", 1000)])
+def test_sppso_variant_budgets(model, variant, evals):
+    cfg = apply_variant(optim.get("sppso", model=model, fps=20.0), variant)
+    assert cfg.evals_per_frame == evals
+    opt = cfg.start(np.zeros(model.n_params), np.random.default_rng(0))
+    n = 0
+    while not opt.done:
+        x = opt.ask()
+        opt.tell(-np.sum(x**2, axis=1))
+        n += len(x)
+    assert n == evals
+
+
+def test_aapso_global_and_hard_variants(model):
+    base = optim.get("aapso", model=model, fps=25.0)
+    glob = apply_variant(base, "global=400x10")
+    assert glob.evals_per_frame == 4000 and len(glob.stages) == 1 and glob.stages[0].active.all() == \
+        np.logical_or.reduce([s.active for s in base.stages]).all()
+    hard = apply_variant(base, "hard")
+    assert hard.evals_per_frame == base.evals_per_frame
+    torso = base.stages[0].active
+    assert not any((s.active & torso).any() for s in hard.stages[1:])
+    assert all((s.active & torso).any() for s in base.stages[1:])  # soft: torso searched at sigma/10
+
+
+def test_every_suite_names_known_algorithms():
+    for name in SUITES:
+        entries = suite(name)
+        assert entries and all(e.algo in optim.names() for e in entries)
+    with pytest.raises(ConfigError, match="thesis-apf"):
+        suite("nope")
+
+
+def test_fitness_option_parsing():
+    assert parse_fitness_options("terms=silhouette, edge_top=false") == {"terms": "silhouette", "edge_top": False}
+    with pytest.raises(ConfigError):
+        parse_fitness_options("terms")

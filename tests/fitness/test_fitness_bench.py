@@ -1,0 +1,36 @@
+"""``swarmpose bench fitness``: the table and the one-object JSON document."""
+
+from __future__ import annotations
+
+import json
+
+from typer.testing import CliRunner
+
+from swarmpose.cli.app import app
+
+QUICK = ["bench", "fitness", "--scales", "4", "--batches", "4,6", "--repeats", "1", "--min-time", "0.01",
+         "--reference-max-batch", "2"]
+
+
+def test_json_document():
+    res = CliRunner().invoke(app, [*QUICK, "--json"])
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.stdout)  # exactly one JSON object on stdout
+    assert set(doc) >= {"machine", "rows", "prepare_ms"}
+    assert doc["prepare_ms"] > 0 and doc["machine"]["cpu_count"] >= 1
+    assert {r["backend"] for r in doc["rows"]} == {"numba", "reference"}
+    for r in doc["rows"]:
+        assert set(r) == {"backend", "width", "height", "batch", "evals_per_s", "ratio_to_reference"}
+        assert (r["width"], r["height"]) == (161, 121) and r["batch"] in (4, 6) and r["evals_per_s"] > 0
+        if r["backend"] == "reference":
+            assert r["ratio_to_reference"] == 1.0
+
+
+def test_table_and_errors():
+    res = CliRunner().invoke(app, QUICK[:2] + ["--backends", "numba", *QUICK[2:]])
+    assert res.exit_code == 0, res.output
+    assert "evaluations/s" in res.stdout and "numba" in res.stdout and "161x121" in res.stdout
+    bad = CliRunner().invoke(app, ["bench", "fitness", "--backends", "cuda"])
+    assert bad.exit_code == 2
+    bad = CliRunner().invoke(app, ["bench", "fitness", "--scales", "0"])
+    assert bad.exit_code == 2
