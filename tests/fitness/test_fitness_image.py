@@ -252,3 +252,12 @@ def test_thread_pool_survives_fork(model, scene, candidates):
     got = q.get(timeout=120)
     proc.join(timeout=30)
     np.testing.assert_array_equal(got, expected)
+
+
+def test_thread_modes_agree(model, scene, candidates):
+    base = make_fitness("silhouette_edge", model).bind(scene)(candidates)
+    for mode in ("prange", "serial"):
+        fit = make_fitness("silhouette_edge", model, backend_options={"threads": mode}).bind(scene)
+        np.testing.assert_array_equal(fit(candidates), base)
+    with pytest.raises(ConfigError):
+        make_fitness("silhouette_edge", model, backend_options={"threads": "gpu"})

@@ -62,7 +62,8 @@ def fitness(
 
     m = res["machine"]
     console.print(f"[bold]machine[/bold]: {m['cpu']}, {m['cpu_count']} CPUs, numba {m['numba']} "
-                  f"({m['numba_threads']} threads, {m['numba_threading_layer']}), numpy {m['numpy']}, "
+                  f"({m['numba_threads']} threads; numba backend threads: {m['numba_backend_threads']}), "
+                  f"numpy {m['numpy']}, "
                   f"OpenCV {m['opencv']}, Python {m['python']}; load average {m['loadavg_start']} -> "
                   f"{m['loadavg_end']}", highlight=False)
     table = Table(title=f"fitness evaluations/s ({views} views, silhouette + edge, incl. kinematics)")
@@ -73,6 +74,11 @@ def fitness(
         table.add_row(r["backend"], f"{r['width']}x{r['height']}", str(r["batch"]), f"{r['evals_per_s']:,.0f}",
                       "-" if ratio is None else f"{ratio:,.1f}", f"{r['evals_per_s'] / 1000:.1f}")
     console.print(table)
+    la = m.get("loadavg_start")  # before the benchmark's own load
+    if la and la[0] > 0.5 * (m.get("cpu_count") or 1):
+        console.print(f"[yellow]warning:[/yellow] other processes were using the CPUs (1-minute load average "
+                      f"{la[0]:.1f} on {m['cpu_count']} CPUs at the start): these rates are lower bounds.",
+                      highlight=False)
     p = res["prepare"]
     levels = ", ".join(f"{k}: {v:.1f} ms" for k, v in p["levels"].items())
     console.print(f"frame preparation ({views} raw 644x484 images -> features + prefix sums): "

@@ -9,9 +9,11 @@ optimisers and the tracker never see it.
 * ``"reference"`` -- :class:`ReferenceBackend`: numpy kinematics, :mod:`swarmpose.render.reference`
   outlines, per-pixel half-plane rasterisation of each footprint, numpy sums. Loops over poses and
   views in Python; slow (tens of ms per pose), obviously right; what the tests compare against.
-* ``"numba"`` -- :class:`NumbaBackend` (default): numba kinematics (parallel over poses) and one fused
-  kernel (:func:`swarmpose.fitness._numba.eval_kernel`, parallel over (pose, view)) with the scanline
-  silhouette counter. ``cache=True``: compiled once per machine, about 1 s to load afterwards.
+* ``"numba"`` -- :class:`NumbaBackend` (default): one fused numba kernel per share of the batch --
+  kinematics, cone outlines, the scanline silhouette counter and the edge samples
+  (:func:`swarmpose.fitness._numba.eval_share`) -- with the poses dealt to all cores (threads that
+  sleep when idle; numba's ``prange`` is an option). ``cache=True``: compiled once per machine
+  (about 30-50 s), about 1 s to load afterwards.
 """
 
 from __future__ import annotations
@@ -244,7 +246,8 @@ class NumbaBackend(_BackendBase):
     threads : {"pool", "prange", "serial"}, default "pool"
         How the batch is spread over the cores. ``"pool"``: the poses are dealt to
         ``numba.get_num_threads()`` threads (the calling one and a pool), each running the GIL-free
-        serial kernel :func:`~swarmpose.fitness._numba.eval_share`; idle threads sleep. ``"prange"``: numba's own
+        serial kernel :func:`~swarmpose.fitness._numba.eval_share`; idle threads sleep.
+        ``"prange"``: numba's own
         parallel loop (:func:`~swarmpose.fitness._numba.eval_kernel`); as fast on an idle machine, but
         with numba's default OpenMP layer its idle threads spin, and when other processes compete
         for the cores a batch can take 5-10x longer (measured on the 2-core reference machine at load

@@ -49,6 +49,9 @@ class ImageFitness:
         Rim grid angles of the cone outlines (:mod:`swarmpose.render`).
     near : float, default 100.0
         Near-plane margin, mm.
+    backend_options : mapping, optional
+        Extra keyword arguments of the backend (e.g. ``{"threads": "prange"}`` for
+        :class:`~swarmpose.fitness.backends.NumbaBackend`).
     """
 
     kind = "image"
@@ -56,11 +59,11 @@ class ImageFitness:
     def __init__(self, model, *, backend: str = "numba", edge_cones: str | tuple[str, ...] = "all",
                  edge_top: bool = True, terms: str = "silhouette+edge",
                  edge_spacing: float = DEFAULT_EDGE_SPACING_PX, n_rim: int = DEFAULT_N_RIM,
-                 near: float = DEFAULT_NEAR_MM):
+                 near: float = DEFAULT_NEAR_MM, backend_options: Mapping[str, Any] | None = None):
         if not edge_spacing > 0:
             raise ConfigError(f"edge_spacing must be > 0 pixels, got {edge_spacing!r}")
         self.model = model
-        self.backend = make_backend(backend, model, n_rim=n_rim, near=near)
+        self.backend = make_backend(backend, model, n_rim=n_rim, near=near, **dict(backend_options or {}))
         self.edge_spacing = float(edge_spacing)
         self.default_options = ImageOptions(edge_cones=edge_cones, edge_top=edge_top, terms=terms)
         self._names = tuple(model.cone_arrays.names)
