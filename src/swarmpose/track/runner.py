@@ -73,7 +73,8 @@ def run_jobs(jobs: Sequence[Job], *, workers: int | None = None, scheduler: str 
     results: list[dict[str, Any] | None] = [None] * len(jobs)
     bar = tqdm(total=len(jobs), desc="runs", unit="run", file=sys.stderr, disable=not progress)
     if scheduler:
-        from dask.distributed import Client, as_completed as dask_completed
+        from dask.distributed import Client
+        from dask.distributed import as_completed as dask_completed
 
         with Client(scheduler) as client:
             futures = {client.submit(run_job, j, pure=False): i for i, j in enumerate(jobs)}

@@ -240,9 +240,8 @@ def run_tracker(
     stays and ``resume=True`` continues from it).
     """
     from swarmpose import optim
-    from swarmpose.io.sequence import open_sequence
-
     from swarmpose.experiments.suites import parse_fitness_options
+    from swarmpose.io.sequence import open_sequence
 
     cfg = setup.config
     model = setup.model
