@@ -34,7 +34,8 @@ lines = st.lists(st.lists(tokens, max_size=8).map(" ".join), max_size=30).map("\
 _settings = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 
 
-def _check(parser, path: Path) -> None:
+def check_clean_failure(parser, path: Path) -> None:
+    """The parser either succeeds or raises FormatError/DataError naming the file; anything else fails."""
     try:
         parser(path)
     except (FormatError, DataError) as exc:
@@ -48,7 +49,7 @@ def test_text_parsers_on_token_soup(ext: str, text: str):
     with tempfile.TemporaryDirectory() as d:
         p = Path(d) / f"f.{ext}"
         p.write_text(text, encoding="utf-8", errors="surrogatepass")
-        _check(TEXT_PARSERS[ext], p)
+        check_clean_failure(TEXT_PARSERS[ext], p)
 
 
 @pytest.mark.parametrize("ext", sorted(TEXT_PARSERS))
@@ -58,7 +59,7 @@ def test_text_parsers_on_bytes(ext: str, data: bytes):
     with tempfile.TemporaryDirectory() as d:
         p = Path(d) / f"f.{ext}"
         p.write_bytes(data)
-        _check(TEXT_PARSERS[ext], p)
+        check_clean_failure(TEXT_PARSERS[ext], p)
 
 
 @_settings
@@ -86,8 +87,8 @@ def test_mat_readers_on_bytes(data: bytes, header: bool):
     with tempfile.TemporaryDirectory() as d:
         p = Path(d) / "Walking_1.mat"
         p.write_bytes((b"MATLAB 5.0 MAT-file, Platform: GLNXA64" + bytes(88) + b"\x00\x01IM" if header else b"") + data)
-        _check(read_mocap_mat, p)
-        _check(read_background_mat, p)
+        check_clean_failure(read_mocap_mat, p)
+        check_clean_failure(read_background_mat, p)
 
 
 @_settings
@@ -100,4 +101,4 @@ def test_truncated_mocap_mat(cut: float):
         write_mocap_mat(p, labels(), mocap_array(3))
         raw = p.read_bytes()
         p.write_bytes(raw[: int(len(raw) * cut)])
-        _check(read_mocap_mat, p)
+        check_clean_failure(read_mocap_mat, p)
