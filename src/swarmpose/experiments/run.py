@@ -11,7 +11,7 @@ import numpy as np
 
 from swarmpose.experiments.suites import Entry, suite
 from swarmpose.metrics import aggregate_runs
-from swarmpose.track.runner import Job, _errors_from, run_jobs
+from swarmpose.track.runner import Job, errors_from_summary, run_jobs
 from swarmpose.track.tracker import TrackConfig, config_record, prepare_track
 
 __all__ = ["run_suite", "comparison_table"]
@@ -44,7 +44,7 @@ def run_suite(name: str, sequences: list[Path], out_dir: Path, *, runs: int = 5,
     rows = []
     for e, seq, cell, setup in cells:
         mine = sorted((r for r in results if Path(r["out_dir"]) == cell), key=lambda r: r["run"])
-        agg = aggregate_runs([_errors_from(r) for r in mine])
+        agg = aggregate_runs([errors_from_summary(r) for r in mine])
         row = {"label": e.label, "algo": e.algo, "fps": e.fps, "variant": e.variant, "fitness": setup.config.fitness_kind,
                "fitness_options": e.fitness_options, "sequence": seq.name, "runs": len(mine),
                "evals_per_frame": setup.evals_per_frame, "d_mean_mm": agg["d_mean"], "d_max_mm": agg["d_max"],

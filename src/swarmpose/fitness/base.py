@@ -102,15 +102,23 @@ def silhouette_score(Y: np.ndarray, P: np.ndarray, O: np.ndarray, a: float = 0.5
     Returns
     -------
     (N, C) float64 in [0, 1]
+
+    Raises
+    ------
+    ValueError
+        ``Y`` exceeds ``P`` or ``O`` (inconsistent counts).
     """
     Y = np.asarray(Y, np.float64)
     P = np.asarray(P, np.float64)
-    O = np.broadcast_to(np.asarray(O, np.float64), Y.shape)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        tb = np.where(P > 0, Y / P, 0.0)  # Y / (B + Y)
-        tr = np.where(O > 0, Y / O, 0.0)  # Y / (R + Y)
-    f = (1.0 - a) * tb + a * tr
-    return np.where((P == 0) & (O == 0), 1.0, f)
+    O = np.asarray(O, np.float64)
+    if (Y > P).any() or (Y > O).any():
+        raise ValueError("overlap Y cannot exceed the projected area P or the observed area O")
+    # Y <= P and Y <= O, so Y / max(P, 1) is Y / P where P > 0 and 0 where P = 0 (likewise for O)
+    f = (1.0 - a) * (Y / np.maximum(P, 1.0)) + a * (Y / np.maximum(O, 1.0))
+    both_empty = (P == 0) & (O == 0)
+    if both_empty.any():
+        f = np.where(both_empty, 1.0, f)
+    return f
 
 
 def edge_score(edge_sum: np.ndarray, count: np.ndarray) -> np.ndarray:
@@ -118,8 +126,7 @@ def edge_score(edge_sum: np.ndarray, count: np.ndarray) -> np.ndarray:
     sample is visible. ``(N, C)`` -> ``(N, C)``."""
     edge_sum = np.asarray(edge_sum, np.float64)
     count = np.asarray(count, np.float64)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(count > 0, edge_sum / np.maximum(count, 1.0), 0.0)
+    return edge_sum / np.maximum(count, 1.0)  # the sum is 0 where the count is 0
 
 
 def deutscher_reid_weight(edge_sq: np.ndarray, edge_count: np.ndarray, region_sq: np.ndarray,

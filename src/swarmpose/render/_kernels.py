@@ -34,8 +34,9 @@ def project_cam_point(x, y, z, cam):
     ``r^2`` is capped at ``cam[10]`` inside the radial polynomial, so points far outside the field of
     view cannot fold back into the image (the polynomial is only valid near the image).
     """
-    a = x / z
-    b = y / z
+    iz = 1.0 / z
+    a = x * iz
+    b = y * iz
     r2 = a * a + b * b
     rr = min(r2, cam[10])
     radial = 1.0 + rr * (cam[5] + rr * (cam[6] + rr * cam[9]))
@@ -70,7 +71,9 @@ def _emit_arc(poly, k, i, Sx, Sy, Sz, ax, ay, az, bx, by, bz, th0, c0, s0, th1, 
         j = int(math.floor(th0 / step)) + 1
         while j * step < th1 - _ANGLE_EPS:
             if j * step > th0 + _ANGLE_EPS:
-                jj = j % n_rim
+                jj = j
+                while jj >= n_rim:  # (cheaper than %; j < 3 n_rim here)
+                    jj -= n_rim
                 _emit(poly, k, i, Sx, Sy, Sz, ax, ay, az, bx, by, bz, ctab[jj], stab[jj], cam)
                 i += 1
             j += 1
@@ -82,7 +85,9 @@ def _emit_arc(poly, k, i, Sx, Sy, Sz, ax, ay, az, bx, by, bz, th0, c0, s0, th1, 
         j = int(math.ceil(th1 / step)) - 1
         while j * step > th0 + _ANGLE_EPS:
             if j * step < th1 - _ANGLE_EPS:
-                jj = j % n_rim
+                jj = j
+                while jj >= n_rim:
+                    jj -= n_rim
                 _emit(poly, k, i, Sx, Sy, Sz, ax, ay, az, bx, by, bz, ctab[jj], stab[jj], cam)
                 i += 1
             j -= 1

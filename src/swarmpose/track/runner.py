@@ -22,7 +22,7 @@ import numpy as np
 from swarmpose.metrics import TrackErrors, aggregate_runs
 from swarmpose.track.tracker import TrackConfig, config_record, prepare_track, run_tracker
 
-__all__ = ["Job", "resolve_sequence", "run_jobs", "track_runs"]
+__all__ = ["Job", "errors_from_summary", "resolve_sequence", "run_job", "run_jobs", "track_runs"]
 
 
 @dataclass(frozen=True)
@@ -101,7 +101,8 @@ def run_jobs(jobs: Sequence[Job], *, workers: int | None = None, scheduler: str 
     return [r for r in results if r is not None]
 
 
-def _errors_from(summary: dict[str, Any]) -> TrackErrors:
+def errors_from_summary(summary: dict[str, Any]) -> TrackErrors:
+    """Rebuild :class:`TrackErrors` (without the per-frame array) from a run's summary dict."""
     keys = ("d_mean", "d_max", "d_std", "mmta", "mmtp", "mu", "sigma")
     return TrackErrors(d_per_frame=np.zeros(0), per_joint=summary["per_joint"], **{k: summary[k] for k in keys})
 
@@ -136,7 +137,7 @@ def track_runs(sequence: str | Path, config: TrackConfig, runs: int, out_dir: Pa
             per_run.append({"run": job.run, "out_dir": str(out_dir), **res.errors})
     else:
         per_run = run_jobs(jobs, workers=workers, scheduler=scheduler, progress=progress)
-    agg = aggregate_runs([_errors_from(r) for r in per_run])
+    agg = aggregate_runs([errors_from_summary(r) for r in per_run])
     summary = {
         "algo": config.algo,
         "fps": config.fps,
