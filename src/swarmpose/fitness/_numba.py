@@ -180,26 +180,26 @@ def _region(k, nv, spacing, c, sil, poly, sides, axis, info, acc):
 
 
 @nb.njit(cache=True, nogil=True)
-def eval_share(th, nth, poses, parents, offsets, rot_axis, rot_sign, rot_param, trans_param,
+def eval_share(idx, poses, parents, offsets, rot_axis, rot_sign, rot_param, trans_param,
                joint, start, end, semi_a, semi_b, scale, Rc, tc, cam, ctab, stab, near,
                prefix, sil, edges, edge_mask, top_cone, spacing, region_spacing,
                do_sil, do_edge, do_region, counts, sums):
-    """Poses ``th, th + nth, ...`` of the batch (one thread's share): see :func:`eval_kernel`.
+    """The poses ``poses[idx]`` of the batch (one thread's share; ``idx (M,)`` int64): see
+    :func:`eval_kernel` for the arguments; results go to ``counts[idx]``, ``sums[idx]``.
 
     Releases the GIL (``nogil``), so Python threads can run shares in parallel
     (:class:`swarmpose.fitness.backends.NumbaBackend` does, see there for why).
     """
-    N = poses.shape[0]
     C = Rc.shape[0]
     K = joint.shape[0]
     J = parents.shape[0]
     H = edges.shape[1]
     W = edges.shape[2]
     P = 2 * ctab.shape[0] + 4
-    mine = (N - th + nth - 1) // nth  # poses th, th + nth, ...
+    mine = idx.shape[0]
     Ts = np.empty((mine, J, 3, 4))
     for i in range(mine):
-        fk_pose_into(poses[th + i * nth], parents, offsets, rot_axis, rot_sign, rot_param, trans_param, Ts[i])
+        fk_pose_into(poses[idx[i]], parents, offsets, rot_axis, rot_sign, rot_param, trans_param, Ts[i])
     poly = np.empty((K, P, 3))
     sides = np.empty((K, 2, 2, 3))
     axis = np.empty((K, 2, 3))
@@ -218,7 +218,7 @@ def eval_share(th, nth, poses, parents, offsets, rot_axis, rot_sign, rot_param, 
     racc = np.empty(2)
     for c in range(C):  # views outside: one view's prefix sums and edge map stay in cache
         for i in range(mine):
-            n = th + i * nth
+            n = idx[i]
             T = Ts[i]
             for k in range(K):
                 nvs[k] = cone_outline(T, joint, start, end, semi_a, semi_b, scale, Rc[c], tc[c], cam[c],
@@ -287,13 +287,13 @@ def eval_kernel(poses, parents, offsets, rot_axis, rot_sign, rot_param, trans_pa
 
     Notes
     -----
-    Poses are dealt round-robin to the threads (``prange`` over the thread count): each thread
-    allocates its scratch once per call, computes its poses' kinematics once, then runs view by view
-    (so that view's prefix sums and edge map stay in the core's cache).
+    Poses are dealt round-robin to the threads (``prange`` over the thread count); each share
+    (:func:`eval_share`) allocates its scratch once, computes its poses' kinematics once, then runs
+    view by view (so that view's prefix sums and edge map stay in the core's cache).
     """
     nth = max(1, min(n_threads, poses.shape[0]))
     for th in nb.prange(nth):
-        eval_share(th, nth, poses, parents, offsets, rot_axis, rot_sign, rot_param, trans_param,
+        eval_share(np.arange(th, poses.shape[0], nth), poses, parents, offsets, rot_axis, rot_sign, rot_param, trans_param,
                    joint, start, end, semi_a, semi_b, scale, Rc, tc, cam, ctab, stab, near,
                    prefix, sil, edges, edge_mask, top_cone, spacing, region_spacing,
                    do_sil, do_edge, do_region, counts, sums)

@@ -408,20 +408,21 @@ def hidden(x, y, z, k, valid, K, poly, nvs, bbox, axis, orient):
 
 @nb.njit(cache=True, nogil=True, inline="always")
 def clip_segment(px, py, qx, qy, j, poly, nvs, bbox, orient):
-    """Parameter interval ``[t_in, t_out]`` of the segment ``p + t (q - p)`` inside the closed convex
-    outline ``j`` (Cyrus-Beck: the half-plane conditions of :func:`hidden` are linear in ``t``);
-    ``t_in > t_out`` when the segment misses it."""
+    """Parameter interval ``[t_in, t_out]`` within ``[0, 1]`` of the segment ``p + t (q - p)`` inside the
+    closed convex outline ``j`` (Cyrus-Beck: the half-plane conditions of :func:`hidden` are linear in
+    ``t``); ``t_in > t_out`` when the segment misses it."""
     if (max(px, qx) < bbox[j, 0] or min(px, qx) > bbox[j, 1]
             or max(py, qy) < bbox[j, 2] or min(py, qy) > bbox[j, 3]):
         return 1.0, 0.0
     dx = qx - px
     dy = qy - py
-    # t_in = max over edges with f1 > 0 of -f0 / f1, t_out = min over f1 < 0 of f0 / -f1, kept as
-    # fractions (num, den > 0) and compared by cross-multiplication: one division at the end
-    in_n = -1.0
-    in_d = 0.0  # -inf
+    # t_in = max(0, max over edges with f1 > 0 of -f0 / f1), t_out = min(1, min over f1 < 0 of f0 / -f1),
+    # kept as fractions (num, den > 0), compared by cross-multiplication, with an early exit when the
+    # interval becomes empty; one division at the end
+    in_n = 0.0
+    in_d = 1.0
     out_n = 1.0
-    out_d = 0.0  # +inf
+    out_d = 1.0
     n = nvs[j]
     o = orient[j]
     for i in range(n):
@@ -432,18 +433,18 @@ def clip_segment(px, py, qx, qy, j, poly, nvs, bbox, orient):
         f0 = o * (ex * (py - poly[j, i, 1]) - ey * (px - poly[j, i, 0]))
         f1 = o * (ex * dy - ey * dx)
         if f1 > 0.0:
-            if in_d == 0.0 or -f0 * in_d > in_n * f1:
+            if -f0 * in_d > in_n * f1:
                 in_n = -f0
                 in_d = f1
         elif f1 < 0.0:
-            if out_d == 0.0 or f0 * out_d < out_n * -f1:
+            if f0 * out_d < out_n * -f1:
                 out_n = f0
                 out_d = -f1
         elif f0 < 0.0:
             return 1.0, 0.0
-    t_in = in_n / in_d if in_d > 0.0 else -np.inf
-    t_out = out_n / out_d if out_d > 0.0 else np.inf
-    return t_in, t_out
+        if in_n * out_d > out_n * in_d:
+            return 1.0, 0.0
+    return in_n / in_d, out_n / out_d
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
