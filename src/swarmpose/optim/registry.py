@@ -163,6 +163,16 @@ class OptimizerConfig:
         raise NotImplementedError
 
 
+def _validate_stages(cfg: Any) -> None:
+    """A staged configuration needs at least one :class:`Stage`, each over the model's parameters."""
+    if not cfg.stages:
+        raise ConfigError(f"{cfg.name}: at least one stage is required")
+    object.__setattr__(cfg, "stages", tuple(cfg.stages))
+    for st in cfg.stages:
+        if not isinstance(st, Stage) or st.dimension != cfg.dimension:
+            raise ConfigError(f"{cfg.name}: stages must be Stage objects over {cfg.dimension} parameters")
+
+
 def _no_carry(name: str, carry: Any) -> None:
     if carry is not None:
         raise ConfigError(f"{name} carries nothing between frames; got carry={type(carry).__name__}")
@@ -191,14 +201,7 @@ class PSOConfig(OptimizerConfig):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        if not self.stages:
-            raise ConfigError(f"{self.name}: at least one stage is required")
-        object.__setattr__(self, "stages", tuple(self.stages))
-        for st in self.stages:
-            if not isinstance(st, Stage) or st.dimension != self.dimension:
-                raise ConfigError(
-                    f"{self.name}: stages must be Stage objects over {self.dimension} parameters"
-                )
+        _validate_stages(self)
         if 2 * self.c_start <= 4 or 2 * self.c_end <= 4:
             raise ConfigError(f"{self.name}: c1 + c2 must exceed 4 (thesis eq. 5.9)")
         if self.vmax_factor <= 0 or self.max_redraws < 0:
@@ -245,14 +248,7 @@ class AAPSOConfig(OptimizerConfig):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        if not self.stages:
-            raise ConfigError(f"{self.name}: at least one stage is required")
-        object.__setattr__(self, "stages", tuple(self.stages))
-        for st in self.stages:
-            if not isinstance(st, Stage) or st.dimension != self.dimension:
-                raise ConfigError(
-                    f"{self.name}: stages must be Stage objects over {self.dimension} parameters"
-                )
+        _validate_stages(self)
         if self.max_redraws < 0:
             raise ConfigError(f"{self.name}: max_redraws must be >= 0")
 
