@@ -1,0 +1,128 @@
+"""Separate what limits a tracking error: the observations/fitness, the per-frame search, or drift.
+
+Two measurements (issue 6 investigation; numbers quoted in its note):
+
+``floor SEQ``  -- per sampled frame, with that frame's fitness bound:
+    * ``f_truth``/``D_truth``: the fitness and 3D error D of the IK pose (the best model fit to the truth);
+    * ``D_search60``/``D_search20``: one SPPSO search (1000 evaluations, sigma for 60 / 20 fps) started AT
+      the IK pose -- the error a single frame's search adds even with a perfect prediction;
+    * ``D_fitness_max``: the best pose found near the truth by a long local search (``--rounds`` SPPSO
+      searches with the 240-fps sigma, each from the best so far, 1000 evaluations each; the IK pose kept
+      when nothing beats it). Its distance from the truth is the error the fitness itself prefers -- an
+      "observation floor" that no search can go below on these images (the IK floor ignores the images).
+
+``drift RESULTS_DIR`` -- for a finished ``swarmpose track`` results folder: mean |error| of every
+    parameter against the IK fit (degrees / mm), largest first, and the correlation of the root heading
+    error with the spine-twist error (a pelvis that turns while the spine twists back keeps the shoulders
+    in place and is barely visible in the fitness).
+
+Run:  .venv/bin/python scripts/diagnose_tracking.py floor cache/sequences/<walk> [--rounds 20] [--json]
+      .venv/bin/python scripts/diagnose_tracking.py drift results/<run folder>
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+
+
+def _d(model, x: np.ndarray, gt: np.ndarray) -> float:
+    return float(np.linalg.norm(model.joints15(x[None])[0] - gt, axis=1).mean())
+
+
+def floor(seq_path: str, frames: list[int], rounds: int, options: dict, seed: int) -> list[dict]:
+    from swarmpose import optim
+    from swarmpose.body.priors import HardPriors
+    from swarmpose.io.sequence import open_sequence
+    from swarmpose.track.tracker import TrackConfig, _frame_observation, _make_fitness, prepare_track
+
+    setup = prepare_track(seq_path, TrackConfig(algo="sppso", fps=60.0), None)
+    model, fit = setup.model, _make_fitness(setup)
+    constraint = HardPriors(model).valid
+    seq = open_sequence(seq_path)
+    backgrounds = seq.backgrounds()
+
+    def search(fps: float, x0: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, float]:
+        opt = optim.get("sppso", model=model, fps=fps).start(x0, rng, constraint=constraint)
+        while not opt.done:
+            poses = opt.ask()
+            opt.tell(fit.evaluate(poses, {**opt.fitness_options, **options}))
+        return np.array(opt.best.x), float(opt.best.score)
+
+    rows = []
+    try:
+        for i in frames:
+            fit.bind(_frame_observation(seq, int(setup.frame_indices[i]), "silhouette_edge", 1, backgrounds))
+            xt, gt = setup.ik_params[i], setup.gt_joints[i]
+            ft = float(fit.evaluate(xt[None], options)[0])
+            rng = np.random.default_rng([seed, i])
+            x60, f60 = search(60.0, xt, rng)
+            x20, f20 = search(20.0, xt, rng)
+            xb, fb = (x60, f60) if f60 > ft else (xt, ft)
+            for _ in range(rounds):
+                x, f = search(240.0, xb, rng)
+                if f > fb:
+                    xb, fb = x, f
+            rows.append({"frame": int(setup.frame_indices[i]), "f_truth": ft, "D_truth": _d(model, xt, gt),
+                         "f_search60": f60, "D_search60": _d(model, x60, gt), "f_search20": f20,
+                         "D_search20": _d(model, x20, gt), "f_fitness_max": fb,
+                         "D_fitness_max": _d(model, xb, gt)})
+    finally:
+        seq.close()
+    return rows
+
+
+def drift(results: Path) -> dict:
+    ik = np.load(results / "ik.npz", allow_pickle=False)["params"]
+    runs = sorted(results.glob("run_*/track.npz"))
+    if not runs:
+        raise SystemExit(f"{results}: no run_*/track.npz (is this a finished `swarmpose track` folder?)")
+    err, corr = [], []
+    for f in runs:
+        with np.load(f, allow_pickle=False) as z:
+            names = [str(n) for n in z["param_names"]]
+            d = z["params"] - ik[: len(z["params"])]
+        err.append(np.abs(d).mean(axis=0))
+        corr.append(float(np.corrcoef(d[:, names.index("pelvis_rz")], d[:, names.index("spine_twist")])[0, 1]))
+    mean = np.mean(err, axis=0)
+    scale = np.array([1.0 if n.endswith(("_tx", "_ty", "_tz")) else 180.0 / np.pi for n in names])
+    order = np.argsort(-(mean * scale))
+    return {"runs": len(runs),
+            "mean_abs_error": {names[j]: round(float(mean[j] * scale[j]), 2) for j in order},
+            "heading_vs_spine_twist_corr": [round(c, 3) for c in corr],
+            "heading_error_deg_per_run": [round(float(np.degrees(e[names.index("pelvis_rz")])), 2) for e in err]}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    a = sub.add_parser("floor")
+    a.add_argument("sequence")
+    a.add_argument("--frames", default="0,40,80,120,160,200,240", help="frame numbers at 60 fps")
+    a.add_argument("--rounds", type=int, default=20)
+    a.add_argument("--terms", default="", help="fitness terms, e.g. 'silhouette' (default: f_s + f_e)")
+    a.add_argument("--seed", type=int, default=0)
+    a.add_argument("--json", action="store_true")
+    b = sub.add_parser("drift")
+    b.add_argument("results", type=Path)
+    args = ap.parse_args()
+    if args.cmd == "drift":
+        print(json.dumps(drift(args.results), indent=1))
+        return
+    options = {"terms": args.terms} if args.terms else {}
+    rows = floor(args.sequence, [int(s) for s in args.frames.split(",")], args.rounds, options, args.seed)
+    mean = {k: float(np.mean([r[k] for r in rows])) for k in rows[0] if k != "frame"}
+    if args.json:
+        print(json.dumps({"frames": rows, "mean": mean}))
+        return
+    keys = list(rows[0])
+    print(" ".join(f"{k:>14}" for k in keys))
+    for r in rows + [{"frame": "mean", **mean}]:
+        print(" ".join(f"{r[k]:>14.4g}" if not isinstance(r[k], str) else f"{r[k]:>14}" for k in keys))
+
+
+if __name__ == "__main__":
+    main()
