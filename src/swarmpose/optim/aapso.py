@@ -26,7 +26,7 @@ Reading of the paper, stated plainly:
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -53,7 +53,7 @@ from .operators import (
     sample_normal,
     update_personal_best,
 )
-from .staged import Stage, StagedSearch
+from .staged import StagedSwarm
 
 __all__ = ["AdaptiveAnnealedPSO", "StagedAAPSO"]
 
@@ -184,7 +184,7 @@ class AdaptiveAnnealedPSO(Optimizer):
         self._k += 1
 
 
-class StagedAAPSO(StagedSearch):
+class StagedAAPSO(StagedSwarm):
     """Six soft stages of AAPSO ([SH17] sec. 3.4 and 4.2); one :class:`AdaptiveAnnealedPSO` per stage.
 
     Parameters
@@ -200,38 +200,4 @@ class StagedAAPSO(StagedSearch):
         As in :class:`AdaptiveAnnealedPSO`.
     """
 
-    def __init__(
-        self,
-        x0: Any,
-        sigma: Any,
-        stages: Sequence[Stage],
-        rng: np.random.Generator,
-        *,
-        adaptive: bool = True,
-        lower: Any = None,
-        upper: Any = None,
-        constraint: Constraint | None = None,
-        max_redraws: int = 10,
-    ) -> None:
-        x0 = np.array(x0, dtype=np.float64)
-        d = x0.shape[0]
-        sigma = as_vector(sigma, d, "sigma")
-        lower, upper = check_bounds(lower, upper, d)
-        check_rng(rng)
-
-        def make_stage(stage: Stage, x_hat: np.ndarray) -> Optimizer:
-            return AdaptiveAnnealedPSO(
-                x_hat,
-                sigma * stage.effective_scale,
-                stage.n_particles,
-                stage.n_iterations,
-                rng,
-                adaptive=adaptive,
-                lower=lower,
-                upper=upper,
-                constraint=constraint,
-                max_redraws=max_redraws,
-                fitness_options=stage.fitness_options,
-            )
-
-        super().__init__(x0, stages, make_stage)
+    stage_optimizer = AdaptiveAnnealedPSO

@@ -27,7 +27,7 @@ Deviations, stated plainly:
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -57,7 +57,7 @@ from .operators import (
     sample_uniform,
     update_personal_best,
 )
-from .staged import Stage, StagedSearch
+from .staged import StagedSwarm
 
 __all__ = ["ConstrictedPSO", "StagedPSO"]
 
@@ -247,7 +247,7 @@ class ConstrictedPSO(Optimizer):
         self._k += 1
 
 
-class StagedPSO(StagedSearch):
+class StagedPSO(StagedSwarm):
     """Soft/hard-partitioned constricted PSO: one :class:`ConstrictedPSO` per :class:`Stage` ([FL12] 5.3.3).
 
     Stage ``j`` starts around stage ``j - 1``'s global best with ``sigma * stage.effective_scale``.
@@ -264,42 +264,4 @@ class StagedPSO(StagedSearch):
         As in :class:`ConstrictedPSO`.
     """
 
-    def __init__(
-        self,
-        x0: Any,
-        sigma: Any,
-        stages: Sequence[Stage],
-        rng: np.random.Generator,
-        *,
-        lower: Any = None,
-        upper: Any = None,
-        constraint: Constraint | None = None,
-        c_start: float = 2.05,
-        c_end: float = 2.15,
-        vmax_factor: float = 2.0,
-        max_redraws: int = 10,
-    ) -> None:
-        x0 = np.array(x0, dtype=np.float64)
-        d = x0.shape[0]
-        sigma = as_vector(sigma, d, "sigma")
-        lower, upper = check_bounds(lower, upper, d)
-        check_rng(rng)
-
-        def make_stage(stage: Stage, x_hat: np.ndarray) -> Optimizer:
-            return ConstrictedPSO(
-                x_hat,
-                sigma * stage.effective_scale,
-                stage.n_particles,
-                stage.n_iterations,
-                rng,
-                lower=lower,
-                upper=upper,
-                constraint=constraint,
-                c_start=c_start,
-                c_end=c_end,
-                vmax_factor=vmax_factor,
-                max_redraws=max_redraws,
-                fitness_options=stage.fitness_options,
-            )
-
-        super().__init__(x0, stages, make_stage)
+    stage_optimizer = ConstrictedPSO

@@ -18,9 +18,9 @@ from typing import Any
 
 import numpy as np
 
-from .base import Candidate, ConfigError, Optimizer, as_vector, frozen_options
+from .base import Candidate, ConfigError, Optimizer, as_vector, check_bounds, check_rng, frozen_options
 
-__all__ = ["Stage", "StagedSearch"]
+__all__ = ["Stage", "StagedSearch", "StagedSwarm"]
 
 
 def _readonly(a: np.ndarray) -> np.ndarray:
@@ -208,3 +208,29 @@ class StagedSearch(Optimizer):
         if self._current is None:  # pragma: no cover - Optimizer.tell guards the protocol
             raise RuntimeError("tell() before the first ask()")
         self._current.tell(scores)
+
+
+class StagedSwarm(StagedSearch):
+    """A staged search with one swarm optimiser (``stage_optimizer``) per :class:`Stage`.
+
+    Stage ``j`` starts around stage ``j - 1``'s estimate with ``sigma * stage.effective_scale``, its swarm size,
+    iterations and fitness options; ``lower``, ``upper`` and every other keyword (``constraint``,
+    ``max_redraws``, the optimiser's own coefficients) go to each stage's optimiser unchanged.
+    """
+
+    stage_optimizer: Callable[..., Optimizer]
+
+    def __init__(self, x0: Any, sigma: Any, stages: Sequence[Stage], rng: np.random.Generator, *,
+                 lower: Any = None, upper: Any = None, **options: Any) -> None:
+        x0 = np.array(x0, dtype=np.float64)
+        d = x0.shape[0]
+        sigma = as_vector(sigma, d, "sigma")
+        lower, upper = check_bounds(lower, upper, d)
+        check_rng(rng)
+        make = type(self).stage_optimizer
+
+        def make_stage(stage: Stage, x_hat: np.ndarray) -> Optimizer:
+            return make(x_hat, sigma * stage.effective_scale, stage.n_particles, stage.n_iterations, rng,
+                        lower=lower, upper=upper, fitness_options=stage.fitness_options, **options)
+
+        super().__init__(x0, stages, make_stage)
