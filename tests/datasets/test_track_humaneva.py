@@ -21,3 +21,5 @@ def test_track_accepts_humaneva_sources(he1: Fixture, tmp_path):
     # the subject was measured from the 15-joint ground truth (no BVH skeleton for HumanEva)
     subject = json.loads((out / "subject.json").read_text())
     assert "15-joint ground truth" in subject["source"]
+    # ... and its cones from the dataset's measurements (static-trial markers + .mp), head included
+    assert "cones from measurements" in subject["source"] and "reference" not in subject["source"]

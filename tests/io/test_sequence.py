@@ -238,3 +238,23 @@ def test_in_memory_validation():
         InMemoryFrames(image=np.zeros((2, C, H, W), np.float32))
     with pytest.raises(ShapeError, match="sum to"):
         MarkerData(("a",), np.ones((2, C), np.int64), np.zeros((3, 2)), np.zeros(3, np.int16))
+
+
+def test_subject_measurements_round_trip_and_named_errors(tmp_path):
+    from swarmpose.body.measurements import SubjectMeasurements
+
+    values = {"LSHO-RSHO": 380.0, "STRN-T10": 230.0, "LKneeWidth": 104.0, "RKneeWidth": 106.0,
+              "LAnkleWidth": 72.0, "RAnkleWidth": 74.0, "LElbowWidth": 70.0, "RElbowWidth": 72.0,
+              "LWristWidth": 52.0, "RWristWidth": 54.0, "LShoulderOffset": 45.0, "RShoulderOffset": 47.0}
+    m = SubjectMeasurements.from_dict({**values, "source": "calipers"})
+    seq = _sequence(np.random.default_rng(1), markers=False)
+    seq.subject_measurements = m
+    path = write_sequence(tmp_path / "seq", seq)
+    with open_sequence(path) as back:
+        assert back.subject_measurements == m
+    _edit_meta(path, subject_measurements={**values, "LKneeWidth": "wide"})
+    with pytest.raises(FormatError, match=r"sequence\.json.*subject_measurements\.LKneeWidth"):
+        open_sequence(path)
+    _edit_meta(path, subject_measurements=None)  # optional: older sequences have none
+    with open_sequence(path) as back:
+        assert back.subject_measurements is None

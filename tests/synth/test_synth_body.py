@@ -87,3 +87,34 @@ def test_bad_settings():
         BodySettings(clothing_mm=-1.0)
     with pytest.raises(ConfigError, match="albedo"):
         BodySettings(albedo={"shirt": 0.5})
+
+
+def test_measurements_match_the_geometry(walk_body: ObservationBody, walk_clip):
+    """The lab measurements agree with the skeleton and with the rest-pose mesh they describe."""
+    m = walk_body.measurements()
+    # shoulder markers straight above the shoulder joints: their distance is the joints' distance
+    from swarmpose.joints import JOINT_INDEX as J
+
+    gt = walk_clip.joints
+    sho = np.linalg.norm(gt[:, J["l_shoulder"]] - gt[:, J["r_shoulder"]], axis=1)
+    assert m.shoulder_markers == pytest.approx(sho.mean(), abs=1.0)
+    # rest-pose mesh: every joint at rest, no rotation
+    rest = ObservationBody(list(walk_body.parts), walk_body.rest_positions[None],
+                           np.broadcast_to(np.eye(3), (1, len(walk_body.rest_positions), 3, 3)),
+                           walk_body.rest_positions, walk_body.settings, walk_body.scale)
+    v, _ = rest.mesh(0)
+    rp = walk_body.rest_positions
+    sm = walk_clip.skeleton_map
+    for side in ("l", "r"):
+        knee, ankle, hip = (rp[sm.joint(f"{side}_{j}")] for j in ("knee", "ankle", "hip"))
+        leg = [walk_body.part_index(f"{side}_thigh"), walk_body.part_index(f"{side}_calf")]
+        pts = v[np.isin(rest.vertex_part, leg)]
+        axis = (ankle - hip) / np.linalg.norm(ankle - hip)
+        along = (pts - knee) @ axis
+        near = pts[np.abs(along) < 30.0] - knee
+        radial = np.linalg.norm(near - np.outer(near @ axis, axis), axis=1)
+        assert getattr(m, f"{side}_knee_width") == pytest.approx(2 * radial.max(), rel=0.02)
+    chest = v[rest.vertex_part == walk_body.part_index("chest")]
+    fwd = np.array([0.0, -1.0, 0.0])  # CMU rest pose faces -y in world axes
+    depth = (chest @ fwd).max() - (chest @ fwd).min()
+    assert m.sternum_t10 == pytest.approx(depth + 14.0, rel=0.01)

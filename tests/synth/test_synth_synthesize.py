@@ -51,6 +51,7 @@ def test_sequence_loads_back(short_walk: SynthReport, walk_clip):
         np.testing.assert_array_equal(seq.world_from_source, walk_clip.world_from_source)
         assert seq.provenance["seed"] == 3 and seq.provenance["clip"]["name"] == "cmu_16_16_walk"
         assert seq.provenance["settings"]["markers"]["dropout"] == 0.05
+        assert short_walk.measurements is not None and seq.subject_measurements == short_walk.measurements
         img, mask = seq.images(5), seq.masks(5)
         assert img.shape == (4, 484, 644) and set(np.unique(mask)) == {0, 1}
         bg = seq.backgrounds()
@@ -103,6 +104,7 @@ def test_cli_synth_json_and_show(walk_clip_path, short_walk: SynthReport, tmp_pa
     data = json.loads(res.stdout)  # exactly one JSON object on stdout
     assert data["frames"] == 3 and data["views"] == 4 and data["seconds"] > 0
     assert data["silhouette_iou"]["min"] >= 0.9 and data["model_fs_at_gt"]["mean"] is not None
+    assert 250.0 < data["subject_measurements"]["LSHO-RSHO"] < 450.0  # what the tracker sizes its cones with
     assert "synth" in res.stderr  # the progress bar goes to stderr
     # a second run into the same folder needs --force
     res = runner.invoke(app, ["synth", str(walk_clip_path), "--out", str(out), "--max-frames", "1", "--json"])

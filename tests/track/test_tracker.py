@@ -73,3 +73,19 @@ def test_track_command_json(short_sequence, tmp_path):
     data = json.loads(res.stdout.strip().splitlines()[-1])
     assert data["algo"] == "apf" and data["fps"] == 20.0 and data["evals_per_frame"] == 1000
     assert data["d_mean_mm"] > 0 and data["ik_floor_mm"] < data["d_mean_mm"]
+
+
+def test_cones_come_from_the_sequence_measurements(short_sequence):
+    """A synthesised sequence carries its subject's measurements; the tracker sizes its cones with them."""
+    from swarmpose.body.measurements import limb_table
+    from swarmpose.io.sequence import open_sequence
+
+    with open_sequence(short_sequence) as seq:
+        m = seq.subject_measurements
+    assert m is not None and "observation body" in m.source
+    setup = prepare_track(short_sequence, TrackConfig(algo="sppso", fps=20.0), None)
+    subject = setup.model.subject
+    P = limb_table(m)
+    np.testing.assert_allclose(subject.cones["torso"], P[0, :4])
+    np.testing.assert_allclose(subject.cones["r_lower_arm"], P[8, :4])
+    assert "cones from measurements" in subject.source and "head = reference" in subject.source

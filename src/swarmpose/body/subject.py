@@ -9,9 +9,12 @@ model-frame vector ``(z, x, y)`` (x forward, y left, z up), times the clip's mm-
   the zero pose) with the measured length.
 * Offsets between branching joints (pelvis→hip, pelvis→thorax, thorax→shoulder, thorax→head top)
   are the full measured 3-vectors, so the model's zero pose matches the subject's proportions.
-* Cone radii are not in a skeleton: they are the spec's reference sizes (a 1.75 m adult) scaled
-  by the subject's leg length over the reference leg length (documented approximation; the
-  synthesis issue renders a different, detailed body on purpose).
+* Cone radii are not in a skeleton. With the subject's measurements (:class:`SubjectMeasurements`:
+  the HumanEva ``.mp`` widths and offsets and the static trial's marker distances) they follow
+  HumanEva's ``ComputeLimbParameters`` (:func:`swarmpose.body.measurements.measured_cones`), as
+  the thesis fitted its model to its subject (sec. 5.1.2). Without measurements they are the
+  spec's reference sizes (a 1.75 m adult) scaled by the subject's leg length over the reference
+  leg length (a documented approximation).
 * The torso cone runs from the pelvis along the pelvis→thorax line up to the *top of the
   shoulders*: the height of the shoulder joints plus the upper arm's radius (the humeral head).
   HumanEva's torso length is pelvis → thorax origin at the top of the sternum; the CMU files'
@@ -24,6 +27,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from swarmpose.body.measurements import SubjectMeasurements, measured_cones
 from swarmpose.body.spec import BodySpec, Subject
 from swarmpose.io.bvh import BvhClip
 from swarmpose.io.mocap import MocapClip
@@ -58,8 +62,24 @@ def _torso_top(offsets: dict, cones: dict) -> tuple[float, float, float]:
     return tuple(float(v) for v in thorax * (top_z / thorax[2]))  # type: ignore[return-value]
 
 
-def subject_from_clip(spec: BodySpec, clip: MocapClip) -> Subject:
-    """Measure a subject for ``spec`` (``balan31`` or ``full45`` layout) from a clip's skeleton."""
+def _cones(spec: BodySpec, ratio: float, measurements: SubjectMeasurements | None
+           ) -> tuple[dict[str, tuple[float, float, float, float]], str]:
+    """Cone sizes from measurements (reference x ``ratio`` for the cones they do not cover) and a note."""
+    scaled = {n: (r0 * ratio, r1 * ratio, sx, sy) for n, (r0, r1, sx, sy) in spec.default_subject.cones.items()}
+    if measurements is None:
+        return scaled, f"cone radii = reference x {ratio:.3f}"
+    cones, kept = measured_cones(measurements, scaled)
+    note = f"cones from measurements ({measurements.source})"
+    if kept:
+        note += f"; {', '.join(kept)} = reference x {ratio:.3f}"
+    return cones, note
+
+
+def subject_from_clip(spec: BodySpec, clip: MocapClip, measurements: SubjectMeasurements | None = None) -> Subject:
+    """Measure a subject for ``spec`` (``balan31`` or ``full45`` layout) from a clip's skeleton.
+
+    ``measurements`` (optional) size the cones (module docstring).
+    """
     pos, ends = rest_positions(clip.bvh)
     sm = clip.skeleton_map
     s = clip.mm_per_unit
@@ -93,11 +113,10 @@ def subject_from_clip(spec: BodySpec, clip: MocapClip) -> Subject:
     ref_leg = -(ref["l_thigh"][2] + ref["l_shank"][2])
     leg = -(offsets["l_thigh"][2] + offsets["l_shank"][2])
     ratio = leg / ref_leg
-    cones = {name: (r0 * ratio, r1 * ratio, sx, sy) for name, (r0, r1, sx, sy) in spec.default_subject.cones.items()}
+    cones, note = _cones(spec, ratio, measurements)
     offsets["pelvis_to_torso_top"] = _torso_top(offsets, cones)
     offsets = {k: v for k, v in offsets.items() if k in spec.default_subject.offsets}
-    return Subject(name=clip.name, offsets=offsets, cones=cones,
-                   source=f"rest pose of {clip.source_path}; cone radii = reference x {ratio:.3f}")
+    return Subject(name=clip.name, offsets=offsets, cones=cones, source=f"rest pose of {clip.source_path}; {note}")
 
 
 def _frames(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
@@ -110,13 +129,14 @@ def _frames(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
     return np.stack([x, y, z], axis=-1)
 
 
-def subject_from_joints(spec: BodySpec, joints15: np.ndarray, name: str = "subject") -> Subject:
+def subject_from_joints(spec: BodySpec, joints15: np.ndarray, name: str = "subject",
+                        measurements: SubjectMeasurements | None = None) -> Subject:
     """Measure a ``balan31``-layout subject from 15-joint ground truth alone (no skeleton file).
 
     For sources without a skeleton (HumanEva mocap): limb lengths are the mean joint distances; the
     branching offsets are averaged in per-frame body frames (pelvis: y from the right to the left
     hip, z towards the thorax; thorax: y from the right to the left shoulder, z up the spine).
-    Frames with non-finite joints are ignored.
+    Frames with non-finite joints are ignored; ``measurements`` (optional) size the cones.
     """
     from swarmpose.joints import JOINT_INDEX as J
 
@@ -147,8 +167,7 @@ def subject_from_joints(spec: BodySpec, joints15: np.ndarray, name: str = "subje
         offsets[f"{side}_forearm"] = (0.0, 0.0, -length(f"{side}_elbow", f"{side}_wrist"))
     ref = spec.default_subject.offsets
     ratio = -(offsets["l_thigh"][2] + offsets["l_shank"][2]) / -(ref["l_thigh"][2] + ref["l_shank"][2])
-    cones = {n: (r0 * ratio, r1 * ratio, sx, sy) for n, (r0, r1, sx, sy) in spec.default_subject.cones.items()}
+    cones, note = _cones(spec, ratio, measurements)
     offsets["pelvis_to_torso_top"] = _torso_top(offsets, cones)
     offsets = {k: v for k, v in offsets.items() if k in spec.default_subject.offsets}
-    return Subject(name=name, offsets=offsets, cones=cones,
-                   source=f"15-joint ground truth ({len(g)} frames); cone radii = reference x {ratio:.3f}")
+    return Subject(name=name, offsets=offsets, cones=cones, source=f"15-joint ground truth ({len(g)} frames); {note}")

@@ -62,6 +62,10 @@ def synth(
     if fs.get("mean") is not None:
         console.print(f"  balan31 f_s at its IK pose: mean {fs['mean']:.3f} (min {fs['min']:.3f}, max {fs['max']:.3f}) "
                       f"over {fs['n_frames']} frames; IK floor {fs['ik_floor_mm']:.1f} mm")
+    sm = data.get("subject_measurements")
+    if sm:
+        console.print("  subject measurements (mm, for the tracker's cones): "
+                      + ", ".join(f"{k} {v:.1f}" for k, v in sm.items() if k != "source"))
     m = data["markers"]
     if m:
         console.print(f"  markers: {m['visible_fraction']:.1%} visible, drop-out {m['dropout_rate']:.3f}, "

@@ -83,6 +83,7 @@ from urllib.parse import parse_qsl
 import cv2
 import numpy as np
 
+from swarmpose.body.measurements import SubjectMeasurements, limb_table
 from swarmpose.camera import Camera
 from swarmpose.errors import ConfigError, DataError, FormatError, ShapeError
 from swarmpose.io.sequence import MultiViewSequence
@@ -118,6 +119,7 @@ __all__ = [
     "matlab_round",
     "limb_lengths",
     "limb_parameters",
+    "subject_measurements",
     "humaneva_ground_truth",
     "joints15_from_points20",
     "humaneva_background_model",
@@ -137,7 +139,6 @@ MOCAP_RATE = 120.0
 #: First usable synchronized frame of HumanEva-I (XVID duplicates frames 1-5).
 FIRST_FRAME_I = 6
 HEAD_LENGTH_MM = 316.103
-HALF_MARKER_MM = 7.0
 PELVIS_SHIFT_MM = -50.0
 HUMANEVA_I_CAMERAS: tuple[str, ...] = ("C1", "C2", "C3", "BW1", "BW2", "BW3", "BW4")
 HUMANEVA_II_CAMERAS: tuple[str, ...] = ("C1", "C2", "C3", "C4")
@@ -836,12 +837,12 @@ def limb_lengths(mocap: MocapMarkers) -> np.ndarray:
     return out
 
 
-def limb_parameters(static: MocapMarkers, mp: Mapping[str, float], mp_path: object = None) -> np.ndarray:
-    """The 10 x 5 cone parameters of ``ComputeLimbParameters`` (facts section 5.2).
+def subject_measurements(static: MocapMarkers, mp: Mapping[str, float], mp_path: object = None
+                         ) -> SubjectMeasurements:
+    """The subject's measurements: marker distances from ``static`` and the ``.mp`` widths and offsets.
 
-    Rows: torso, L thigh, L calf, R thigh, R calf, L upper arm, L lower arm, R upper arm, R lower arm,
-    head; columns: proximal radius, distal radius, x-scale, y-scale, (head only) head offset in rad.
-    Means run over every frame of ``static`` (as the support code; a lost marker counts as 0).
+    Marker distances are means over every frame of ``static`` (as the support code; a lost marker
+    counts as 0).
     """
     m = static.markers
 
@@ -851,21 +852,29 @@ def limb_parameters(static: MocapMarkers, mp: Mapping[str, float], mp_path: obje
     def val(n: str) -> float:
         return mp_value(mp, n, mp_path)
 
-    P = np.zeros((10, 5))
-    r_t = mean_dist("LSHO", "RSHO") / 2.0 - HALF_MARKER_MM
-    P[0] = (r_t, r_t, mean_dist("STRN", "T10") / (2 * r_t) if r_t != 0 else np.nan, 1.0, 0.0)
-    P[1] = ((r_t + HALF_MARKER_MM) / 2.0, val("LKneeWidth") / 2.0, 1.0, 1.0, 0.0)
-    P[2] = (val("LKneeWidth") / 2.0, val("LAnkleWidth") / 2.0, 1.0, 1.0, 0.0)
-    P[3] = ((r_t + HALF_MARKER_MM) / 2.0, val("RKneeWidth") / 2.0, 1.0, 1.0, 0.0)
-    P[4] = (val("RKneeWidth") / 2.0, val("RAnkleWidth") / 2.0, 1.0, 1.0, 0.0)
-    P[5] = (val("LShoulderOffset"), val("LElbowWidth") / 2.0, 1.0, 1.0, 0.0)
-    P[6] = (val("LElbowWidth") / 2.0, val("LWristWidth") / 2.0, 1.0, 1.0, 0.0)
-    P[7] = (val("RShoulderOffset"), val("RElbowWidth") / 2.0, 1.0, 1.0, 0.0)
-    P[8] = (val("RElbowWidth") / 2.0, val("RWristWidth") / 2.0, 1.0, 1.0, 0.0)
-    r_h = mean_dist("LBHD", "RFHD") / 2.0
-    P[9] = (r_h, r_h, 1.0, mean_dist("LFHD", "RFHD") / (2 * r_h) if r_h != 0 else np.nan,
-            val("HeadOffset") / 180.0 * math.pi)
-    return P
+    try:
+        return SubjectMeasurements(
+            shoulder_markers=mean_dist("LSHO", "RSHO"), sternum_t10=mean_dist("STRN", "T10"),
+            l_knee_width=val("LKneeWidth"), r_knee_width=val("RKneeWidth"),
+            l_ankle_width=val("LAnkleWidth"), r_ankle_width=val("RAnkleWidth"),
+            l_elbow_width=val("LElbowWidth"), r_elbow_width=val("RElbowWidth"),
+            l_wrist_width=val("LWristWidth"), r_wrist_width=val("RWristWidth"),
+            l_shoulder_offset=val("LShoulderOffset"), r_shoulder_offset=val("RShoulderOffset"),
+            head_diagonal=mean_dist("LBHD", "RFHD"), head_front=mean_dist("LFHD", "RFHD"),
+            head_offset_deg=val("HeadOffset"),
+            source=f"{static.path} (markers), {mp_path} (.mp)")
+    except FormatError as exc:
+        raise FormatError(f"{exc} (static trial {static.path}, subject file {mp_path})") from None
+
+
+def limb_parameters(static: MocapMarkers, mp: Mapping[str, float], mp_path: object = None) -> np.ndarray:
+    """The 10 x 5 cone parameters of ``ComputeLimbParameters`` (facts section 5.2).
+
+    Rows: torso, L thigh, L calf, R thigh, R calf, L upper arm, L lower arm, R upper arm, R lower arm,
+    head; columns: proximal radius, distal radius, x-scale, y-scale, (head only) head offset in rad.
+    The rules are :func:`swarmpose.body.measurements.limb_table`.
+    """
+    return limb_table(subject_measurements(static, mp, mp_path))
 
 
 def _yrot_t(theta: np.ndarray) -> np.ndarray:
@@ -1701,10 +1710,12 @@ class HumanEvaTrial:
             else:
                 static = mocap
                 notes["torso_radius_from"] = f"{mocap.path} (no Static trial found)"
-        params = limb_parameters(static, mp, mp_path)
+        measurements = subject_measurements(static, mp, mp_path)
+        params = limb_table(measurements)
         gt = humaneva_ground_truth(mocap, self.sync.mocap_position(frames), torso_radius=float(params[0, 0]),
                                    l_shoulder_offset=float(params[5, 0]), r_shoulder_offset=float(params[7, 0]))
         notes["limb_params"] = params
+        notes["measurements"] = measurements
         notes["limb_lengths_mm"] = limb_lengths(mocap)
         return gt, notes
 
@@ -1824,6 +1835,7 @@ class HumanEvaTrial:
             return MultiViewSequence(cameras=camera_objs, frame_rate=VIDEO_RATE, n_frames=len(F), reader=reader,
                                      frame_times=(F - first) / VIDEO_RATE, backgrounds=backgrounds,
                                      gt_joints=None if gt is None else gt.joints15, provenance=provenance,
+                                     subject_measurements=None if gt is None else notes["measurements"],
                                      path=self.subject_dir)
         except BaseException:
             for s in sources.values():

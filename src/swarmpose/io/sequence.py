@@ -34,6 +34,7 @@ from typing import Any, Protocol
 import cv2
 import numpy as np
 
+from swarmpose.body.measurements import SubjectMeasurements
 from swarmpose.camera import Camera, load_rig, save_rig
 from swarmpose.errors import ConfigError, DataError, FormatError, ShapeError
 
@@ -302,6 +303,9 @@ class MultiViewSequence:
         Where the sequence came from (clip, seed, settings, versions).
     source_clip : str or path-like, optional
         The motion-capture clip behind the ground truth.
+    subject_measurements : SubjectMeasurements, optional
+        The subject's widths, offsets and marker distances (HumanEva ``.mp`` + static trial); the
+        tracker sizes its cones from them (:func:`swarmpose.body.measurements.measured_cones`).
     path : path-like, optional
         Folder the sequence was read from.
 
@@ -325,6 +329,7 @@ class MultiViewSequence:
         world_from_source: np.ndarray | None = None,
         provenance: Mapping[str, Any] | None = None,
         source_clip: str | os.PathLike[str] | None = None,
+        subject_measurements: SubjectMeasurements | None = None,
         path: str | os.PathLike[str] | None = None,
     ):
         cams = list(cameras)
@@ -377,6 +382,9 @@ class MultiViewSequence:
         self.world_from_source = _ro(wfs)
         self.provenance = dict(provenance or {})
         self.source_clip = None if source_clip is None else str(source_clip)
+        if subject_measurements is not None and not isinstance(subject_measurements, SubjectMeasurements):
+            raise ConfigError("subject_measurements must be a SubjectMeasurements")
+        self.subject_measurements = subject_measurements
         self.path = None if path is None else Path(path)
 
     # ------------------------------------------------------------------ metadata
@@ -604,6 +612,7 @@ class SequenceWriter:
         world_from_source: np.ndarray | None = None,
         source_clip: str | os.PathLike[str] | None = None,
         provenance: Mapping[str, Any] | None = None,
+        subject_measurements: SubjectMeasurements | None = None,
     ) -> Path:
         """Close the archives and write the metadata files (``sequence.json`` last).
 
@@ -626,7 +635,8 @@ class SequenceWriter:
         seq = MultiViewSequence(cameras=self.cameras, frame_rate=self.frame_rate, n_frames=T,
                                 frame_times=frame_times, backgrounds=backgrounds, gt_joints=gt_joints,
                                 markers=markers, world_from_source=world_from_source,
-                                provenance=provenance, source_clip=source_clip)
+                                provenance=provenance, source_clip=source_clip,
+                                subject_measurements=subject_measurements)
         save_rig(self.path / _CAMERAS, self.cameras)
         np.savez(self.path / _FRAMES, frame_times=np.asarray(seq.frame_times))
         files: dict[str, Any] = {"cameras": _CAMERAS, "frames": _FRAMES, "backgrounds": None,
@@ -662,6 +672,8 @@ class SequenceWriter:
             "ground_truth_joints": "JOINTS15" if gt_joints is not None else None,
             "world_from_source": np.asarray(seq.world_from_source).tolist(),
             "source_clip": seq.source_clip,
+            "subject_measurements": (None if subject_measurements is None
+                                     else subject_measurements.to_dict()),
             "provenance": _json_safe(seq.provenance),
         }
         tmp = self.path / (_META + ".tmp")
@@ -719,7 +731,8 @@ def write_sequence(path: str | os.PathLike[str], seq: MultiViewSequence, *, over
         return w.finish(backgrounds=seq.backgrounds(), frame_times=np.asarray(seq.frame_times),
                         gt_joints=None if seq.gt_joints is None else np.asarray(seq.gt_joints),
                         markers=seq.marker_data, world_from_source=np.asarray(seq.world_from_source),
-                        source_clip=seq.source_clip, provenance=seq.provenance)
+                        source_clip=seq.source_clip, provenance=seq.provenance,
+                        subject_measurements=seq.subject_measurements)
     except BaseException:
         w.abort()
         raise
@@ -898,6 +911,8 @@ def open_sequence(path: str | os.PathLike[str]) -> MultiViewSequence:
     prov = meta.get("provenance") or {}
     if not isinstance(prov, dict):
         raise FormatError("provenance must be an object", path=meta_path, field="provenance")
+    sm = meta.get("subject_measurements")
+    measurements = None if sm is None else SubjectMeasurements.from_dict(sm, path=meta_path)
     reader = None
     if streams:
         reader = _ZipFrames(root, [view_files[v] for v in views], streams, T, (W, H))
@@ -905,7 +920,8 @@ def open_sequence(path: str | os.PathLike[str]) -> MultiViewSequence:
         return MultiViewSequence(cameras=cameras, frame_rate=fr, n_frames=T, reader=reader,
                                  frame_times=frame_times, backgrounds=backgrounds, gt_joints=gt,
                                  markers=markers, world_from_source=wfs_arr, provenance=prov,
-                                 source_clip=meta.get("source_clip"), path=root)
+                                 source_clip=meta.get("source_clip"), subject_measurements=measurements,
+                                 path=root)
     except (ShapeError, ConfigError) as exc:
         if reader is not None:
             reader.close()

@@ -35,6 +35,7 @@ from typing import Any
 
 import numpy as np
 
+from swarmpose.body.measurements import SubjectMeasurements
 from swarmpose.errors import ConfigError, ShapeError
 from swarmpose.io.mocap import MocapClip
 
@@ -387,6 +388,43 @@ class ObservationBody:
     def describe(self) -> list[dict[str, Any]]:
         """Sizes of every part (JSON-safe), for provenance and the documentation."""
         return [p.describe() for p in self.parts]
+
+    def measurements(self) -> SubjectMeasurements:
+        """Measure this body as a motion-capture lab measures a subject (Vicon Plug-in Gait protocol).
+
+        On the rest pose, over the clothing (markers and calipers go on the outer surface):
+
+        * ``LSHO``/``RSHO`` sit on top of the shoulder yoke straight above each shoulder joint, their
+          centres 7 mm (half a marker) off the surface, so ``|LSHO - RSHO|`` is the distance of the
+          shoulder joints and the shoulder offset is the yoke's radius (surface to joint centre);
+        * ``STRN``/``T10`` sit on the front and back of the chest at its deepest point, 7 mm off
+          the surface: ``|STRN - T10|`` = the chest's depth + 14 mm;
+        * knee, ankle, elbow and wrist widths are caliper widths across the limb at the joint (the
+          wider of the two parts meeting there).
+
+        No head band is measured, so the tracker keeps its reference head cone.
+        """
+        def part(name: str) -> BodyPart:
+            return self.parts[self.part_index(name)]
+
+        yoke, chest = part("shoulders"), part("chest")
+        shoulders = float(np.linalg.norm(self._rest[yoke.a_joint] + yoke.a_offset
+                                         - self._rest[yoke.b_joint] - yoke.b_offset))
+        half_marker = 7.0
+
+        def width(upper: str, lower: str) -> float:
+            return 2.0 * max(float(part(upper).radii[1]), float(part(lower).radii[0]))
+
+        return SubjectMeasurements(
+            shoulder_markers=shoulders,
+            sternum_t10=2.0 * float(chest.semi[2]) + 2.0 * half_marker,
+            l_knee_width=width("l_thigh", "l_calf"), r_knee_width=width("r_thigh", "r_calf"),
+            l_ankle_width=2.0 * float(part("l_calf").radii[1]), r_ankle_width=2.0 * float(part("r_calf").radii[1]),
+            l_elbow_width=width("l_upper_arm", "l_forearm"), r_elbow_width=width("r_upper_arm", "r_forearm"),
+            l_wrist_width=2.0 * float(part("l_forearm").radii[1]),
+            r_wrist_width=2.0 * float(part("r_forearm").radii[1]),
+            l_shoulder_offset=float(yoke.radii[0]), r_shoulder_offset=float(yoke.radii[1]),
+            source="synthetic observation body (rest pose, over clothing)")
 
     def carry(self, k: int, joints: np.ndarray, offsets_rest: np.ndarray) -> np.ndarray:
         """World positions at frame ``k`` of points fixed to BVH joints.

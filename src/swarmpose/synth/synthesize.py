@@ -36,6 +36,7 @@ from typing import Any
 
 import numpy as np
 
+from swarmpose.body.measurements import SubjectMeasurements
 from swarmpose.camera import Camera
 from swarmpose.errors import ConfigError, DataError
 from swarmpose.io.mocap import load_clip
@@ -56,7 +57,7 @@ from swarmpose.synth.scene import Room, SceneSettings, blur, form_image, render_
 __all__ = ["SYNTH_VERSION", "SynthReport", "synthesize", "cached_sequence", "iou_summary"]
 
 #: Bumped whenever the synthesiser's output for the same inputs changes (part of the cache key).
-SYNTH_VERSION = 1
+SYNTH_VERSION = 2  # 2: sequences carry the subject measurements
 
 
 def _percentiles(values: np.ndarray) -> dict[str, float]:
@@ -99,6 +100,8 @@ class SynthReport:
     timings : dict of str to float
         Seconds per stage.
     disk_bytes : int
+    measurements : SubjectMeasurements or None
+        The observation body measured as a lab measures a subject (stored in the sequence).
     """
 
     path: Path
@@ -113,6 +116,7 @@ class SynthReport:
     marker_stats: MarkerStats | None
     timings: dict[str, float] = field(default_factory=dict)
     disk_bytes: int = 0
+    measurements: SubjectMeasurements | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-safe summary (the ``--json`` output)."""
@@ -134,6 +138,7 @@ class SynthReport:
                 "ik_floor_mm": self.ik_floor_mm,
             },
             "markers": self.marker_stats.to_dict() if self.marker_stats is not None else None,
+            "subject_measurements": self.measurements.to_dict() if self.measurements is not None else None,
             "timings_s": {k: round(v, 3) for k, v in self.timings.items()},
             "disk_mb": round(self.disk_bytes / 2**20, 1),
         }
@@ -282,7 +287,7 @@ def synthesize(
         from swarmpose.fitness import make_fitness
 
         base = load_model("balan31")
-        model = base.with_subject(subject_from_clip(base.spec, clip))
+        model = base.with_subject(subject_from_clip(base.spec, clip, obs.measurements()))
         ik = fit_ik(model, clip.joints[fs_frames])
         fs_params = ik.params
         ik_floor = ik.floor_mean_mm
@@ -377,7 +382,7 @@ def synthesize(
         path = writer.finish(backgrounds=backgrounds, frame_times=clip.frame_times[:T],
                              gt_joints=clip.joints[:T], markers=marker_data,
                              world_from_source=clip.world_from_source, source_clip=str(clip_path.resolve()),
-                             provenance=provenance)
+                             provenance=provenance, subject_measurements=obs.measurements())
         tick("write", t0)
     except BaseException:
         writer.abort()
@@ -388,7 +393,7 @@ def synthesize(
     return SynthReport(path=Path(path), clip=str(clip_path), frames=T, views=C,
                        seconds=time.perf_counter() - t_start, iou=iou, fs=fs, fs_frames=fs_frames,
                        ik_floor_mm=ik_floor, marker_stats=mstats, timings=timings,
-                       disk_bytes=_folder_bytes(Path(path)))
+                       disk_bytes=_folder_bytes(Path(path)), measurements=obs.measurements())
 
 
 def _settings_key(fps: float, seed: int, settings: dict[str, Any]) -> str:

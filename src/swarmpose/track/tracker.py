@@ -127,14 +127,19 @@ class TrackSetup:
 
 
 def _subject_for(seq: Any, spec) -> Subject:
-    """The subject from the source BVH skeleton when there is one, else from the 15-joint ground truth."""
+    """The subject from the source BVH skeleton when there is one, else from the 15-joint ground truth.
+
+    Cones come from the sequence's subject measurements when it has them (HumanEva's rules).
+    """
     from swarmpose.body.subject import subject_from_clip, subject_from_joints
     from swarmpose.io.mocap import load_clip
 
+    measurements = getattr(seq, "subject_measurements", None)
     clip_path = getattr(seq, "source_clip", None)
     if clip_path is not None and Path(clip_path).is_file():
-        return subject_from_clip(spec, load_clip(clip_path))
-    return subject_from_joints(spec, np.asarray(seq.gt_joints), name=str(getattr(seq, "path", "subject")))
+        return subject_from_clip(spec, load_clip(clip_path), measurements)
+    return subject_from_joints(spec, np.asarray(seq.gt_joints), name=str(getattr(seq, "path", "subject")),
+                               measurements=measurements)
 
 
 def prepare_track(sequence_path: str | Path, config: TrackConfig, out_dir: Path | None = None) -> TrackSetup:
