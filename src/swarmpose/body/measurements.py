@@ -25,7 +25,7 @@ import numpy as np
 
 from swarmpose.errors import FormatError
 
-__all__ = ["HALF_MARKER_MM", "SubjectMeasurements", "limb_table", "measured_cones"]
+__all__ = ["HALF_MARKER_MM", "LIMB_ROWS", "SubjectMeasurements", "limb_table", "measured_cones"]
 
 #: Half the diameter of a Vicon marker (14 mm), as ``ComputeLimbParameters`` subtracts it.
 HALF_MARKER_MM = 7.0

@@ -35,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-from swarmpose.body.measurements import SubjectMeasurements
+from swarmpose.body.measurements import HALF_MARKER_MM, SubjectMeasurements
 from swarmpose.errors import ConfigError, ShapeError
 from swarmpose.io.mocap import MocapClip
 
@@ -410,14 +410,13 @@ class ObservationBody:
         yoke, chest = part("shoulders"), part("chest")
         shoulders = float(np.linalg.norm(self._rest[yoke.a_joint] + yoke.a_offset
                                          - self._rest[yoke.b_joint] - yoke.b_offset))
-        half_marker = 7.0
 
         def width(upper: str, lower: str) -> float:
             return 2.0 * max(float(part(upper).radii[1]), float(part(lower).radii[0]))
 
         return SubjectMeasurements(
             shoulder_markers=shoulders,
-            sternum_t10=2.0 * float(chest.semi[2]) + 2.0 * half_marker,
+            sternum_t10=2.0 * float(chest.semi[2]) + 2.0 * HALF_MARKER_MM,
             l_knee_width=width("l_thigh", "l_calf"), r_knee_width=width("r_thigh", "r_calf"),
             l_ankle_width=2.0 * float(part("l_calf").radii[1]), r_ankle_width=2.0 * float(part("r_calf").radii[1]),
             l_elbow_width=width("l_upper_arm", "l_forearm"), r_elbow_width=width("r_upper_arm", "r_forearm"),

@@ -251,6 +251,7 @@ def synthesize(
     if T < 1:
         raise ConfigError(f"{clip_path}: nothing to synthesise ({clip.frames} frames, max_frames={max_frames})")
     obs = ObservationBody.from_clip(clip, body_settings)
+    measurements = obs.measurements()
     cams = list(rig) if rig is not None else default_rig(clip, rig_settings)
     C = len(cams)
     W, H = cams[0].width, cams[0].height
@@ -287,7 +288,7 @@ def synthesize(
         from swarmpose.fitness import make_fitness
 
         base = load_model("balan31")
-        model = base.with_subject(subject_from_clip(base.spec, clip, obs.measurements()))
+        model = base.with_subject(subject_from_clip(base.spec, clip, measurements))
         ik = fit_ik(model, clip.joints[fs_frames])
         fs_params = ik.params
         ik_floor = ik.floor_mean_mm
@@ -382,7 +383,7 @@ def synthesize(
         path = writer.finish(backgrounds=backgrounds, frame_times=clip.frame_times[:T],
                              gt_joints=clip.joints[:T], markers=marker_data,
                              world_from_source=clip.world_from_source, source_clip=str(clip_path.resolve()),
-                             provenance=provenance, subject_measurements=obs.measurements())
+                             provenance=provenance, subject_measurements=measurements)
         tick("write", t0)
     except BaseException:
         writer.abort()
@@ -393,7 +394,7 @@ def synthesize(
     return SynthReport(path=Path(path), clip=str(clip_path), frames=T, views=C,
                        seconds=time.perf_counter() - t_start, iou=iou, fs=fs, fs_frames=fs_frames,
                        ik_floor_mm=ik_floor, marker_stats=mstats, timings=timings,
-                       disk_bytes=_folder_bytes(Path(path)), measurements=obs.measurements())
+                       disk_bytes=_folder_bytes(Path(path)), measurements=measurements)
 
 
 def _settings_key(fps: float, seed: int, settings: dict[str, Any]) -> str:
