@@ -17,6 +17,7 @@ Two measurements (issue 6 investigation; numbers quoted in its note):
     in place and is barely visible in the fitness).
 
 Run:  .venv/bin/python scripts/diagnose_tracking.py floor cache/sequences/<walk> [--rounds 20] [--json]
+          [--terms silhouette|edge] [--features edge_sigma_px=4]
       .venv/bin/python scripts/diagnose_tracking.py drift results/<run folder>
 """
 
@@ -33,7 +34,8 @@ def _d(model, x: np.ndarray, gt: np.ndarray) -> float:
     return float(np.linalg.norm(model.joints15(x[None])[0] - gt, axis=1).mean())
 
 
-def floor(seq_path: str, frames: list[int], rounds: int, options: dict, seed: int) -> list[dict]:
+def floor(seq_path: str, frames: list[int], rounds: int, options: dict, seed: int,
+          features: str = "") -> list[dict]:
     from swarmpose import optim
     from swarmpose.body.priors import HardPriors
     from swarmpose.io.sequence import open_sequence
@@ -55,7 +57,8 @@ def floor(seq_path: str, frames: list[int], rounds: int, options: dict, seed: in
     rows = []
     try:
         for i in frames:
-            fit.bind(_frame_observation(seq, int(setup.frame_indices[i]), "silhouette_edge", 1, backgrounds))
+            fit.bind(_frame_observation(seq, int(setup.frame_indices[i]), "silhouette_edge", 1, backgrounds,
+                                        features))
             xt, gt = setup.ik_params[i], setup.gt_joints[i]
             ft = float(fit.evaluate(xt[None], options)[0])
             rng = np.random.default_rng([seed, i])
@@ -104,6 +107,7 @@ def main() -> None:
     a.add_argument("--frames", default="0,40,80,120,160,200,240", help="frame numbers at 60 fps")
     a.add_argument("--rounds", type=int, default=20)
     a.add_argument("--terms", default="", help="fitness terms, e.g. 'silhouette' (default: f_s + f_e)")
+    a.add_argument("--features", default="", help="image feature settings as `swarmpose track --features`")
     a.add_argument("--seed", type=int, default=0)
     a.add_argument("--json", action="store_true")
     b = sub.add_parser("drift")
@@ -113,7 +117,8 @@ def main() -> None:
         print(json.dumps(drift(args.results), indent=1))
         return
     options = {"terms": args.terms} if args.terms else {}
-    rows = floor(args.sequence, [int(s) for s in args.frames.split(",")], args.rounds, options, args.seed)
+    rows = floor(args.sequence, [int(s) for s in args.frames.split(",")], args.rounds, options, args.seed,
+                 args.features)
     mean = {k: float(np.mean([r[k] for r in rows])) for k in rows[0] if k != "frame"}
     if args.json:
         print(json.dumps({"frames": rows, "mean": mean}))

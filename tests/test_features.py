@@ -10,7 +10,7 @@ import pytest
 
 from swarmpose.camera import Camera
 from swarmpose.errors import ConfigError, ShapeError
-from swarmpose.features import FrameFeatures, compute_features, edge_map, silhouette
+from swarmpose.features import FrameFeatures, compute_features, edge_map, parse_feature_options, silhouette
 
 H, W = 484, 644
 
@@ -110,6 +110,29 @@ def test_frame_features_and_pyramid():
         FrameFeatures(ff.silhouettes, ff.edges, [cams[0], cams[1].scaled(0.5)])
     with pytest.raises(ShapeError):
         compute_features(imgs, bgs[:1], cams)
+
+
+def test_feature_options():
+    sil, edge = parse_feature_options(" edge_threshold=8.5, silhouette_threshold=30,edge_dilate_px=9 ")
+    assert sil == {"threshold": 30} and edge == {"threshold": 8.5, "dilate_px": 9}
+    assert parse_feature_options("") == ({}, {})
+    for bad, match in (("edge_treshold=8", "known: silhouette_threshold"), ("edge_threshold", "key=value"),
+                       ("edge_sigma_px=wide", "number"), ("silhouette_open_px=2.5", "whole")):
+        with pytest.raises(ConfigError, match=match):
+            parse_feature_options(bad)
+    # the options reach the feature code: a low edge threshold keeps the faint inner edge of a
+    # darker band across the person that the default (a 40 grey-level step) drops
+    rng = np.random.default_rng(5)
+    frame, back, mask = _scene(rng, 1.0)
+    band = np.zeros_like(mask)
+    band[300:320] = 1
+    frame = np.where((band & mask) > 0, np.clip(frame.astype(int) - 15, 0, 255), frame).astype(np.uint8)
+    cams = _cams(1)
+    default = compute_features(frame[None], back[None], cams)
+    low_sil, low_edge = parse_feature_options("edge_threshold=8")
+    low = compute_features(frame[None], back[None], cams, silhouette_options=low_sil, edge_options=low_edge)
+    inner = (np.abs(np.arange(H) - 300) <= 1)[:, None] & (cv2.erode(mask, np.ones((15, 15), np.uint8)) > 0)
+    assert low.edges[0][inner].mean() > 0.3 > default.edges[0][inner].mean()
 
 
 def test_features_time_budget():

@@ -18,6 +18,8 @@ Public API
     level with the cameras rescaled by :meth:`swarmpose.camera.Camera.scaled`.
 ``compute_features(images (C, H, W) uint8, backgrounds (C, H, W) uint8, cameras, *, downsample=1)``
     Both features for every view, at full resolution, then optionally downsampled.
+``parse_feature_options("edge_threshold=8,...") -> (silhouette_options, edge_options)``
+    The settings above from a ``key=value`` string (``swarmpose track --features``).
 
 Pixel convention (``shared/design.md`` §2): ``(0, 0)`` is the centre of the top-left pixel; image
 arrays are indexed ``[row, column] = [v, u]``.
@@ -42,7 +44,20 @@ import numpy as np
 from swarmpose.camera import Camera
 from swarmpose.errors import ConfigError, ShapeError
 
-__all__ = ["silhouette", "edge_map", "FrameFeatures", "compute_features"]
+__all__ = ["silhouette", "edge_map", "FrameFeatures", "compute_features", "FEATURE_OPTIONS",
+           "parse_feature_options"]
+
+#: Keys of :func:`parse_feature_options`: ``(function, keyword)`` of :func:`silhouette` / :func:`edge_map`.
+FEATURE_OPTIONS: dict[str, tuple[str, str]] = {
+    "silhouette_threshold": ("silhouette", "threshold"),
+    "silhouette_blur_px": ("silhouette", "blur_px"),
+    "silhouette_open_px": ("silhouette", "open_px"),
+    "silhouette_close_px": ("silhouette", "close_px"),
+    "edge_threshold": ("edge", "threshold"),
+    "edge_dilate_px": ("edge", "dilate_px"),
+    "edge_sigma_px": ("edge", "sigma_px"),
+}
+_INT_OPTIONS = ("threshold", "open_px", "close_px", "dilate_px")
 
 
 def _as_gray(image: np.ndarray, name: str) -> np.ndarray:
@@ -309,6 +324,39 @@ class FrameFeatures:
             peak = float(e.max())
             edg[v] = e * np.float32(1.0 / peak) if peak > 0 else e
         return FrameFeatures(sil, edg, cams)
+
+
+def parse_feature_options(text: str) -> tuple[dict, dict]:
+    """``"edge_threshold=8,silhouette_threshold=30"`` -> ``(silhouette_options, edge_options)``.
+
+    The keys are :data:`FEATURE_OPTIONS`; values are numbers. The result feeds
+    :func:`compute_features`. An empty string gives two empty dicts (the defaults).
+
+    Raises
+    ------
+    ConfigError
+        An item is not ``key=value``, the key is unknown (the message lists the known ones) or the
+        value is not a number.
+    """
+    sil: dict = {}
+    edge: dict = {}
+    for item in filter(None, (t.strip() for t in str(text).split(","))):
+        key, sep, value = (t.strip() for t in item.partition("="))
+        if not sep:
+            raise ConfigError(f"feature option {item!r} is not key=value")
+        if key not in FEATURE_OPTIONS:
+            raise ConfigError(f"unknown feature option {key!r} (known: {', '.join(FEATURE_OPTIONS)})")
+        target, kw = FEATURE_OPTIONS[key]
+        try:
+            v = float(value)
+        except ValueError:
+            raise ConfigError(f"feature option {key} needs a number, got {value!r}") from None
+        if kw in _INT_OPTIONS and (kw != "threshold" or target == "silhouette"):
+            if v != int(v):
+                raise ConfigError(f"feature option {key} needs a whole number, got {value!r}")
+            v = int(v)
+        (sil if target == "silhouette" else edge)[kw] = v
+    return sil, edge
 
 
 def compute_features(

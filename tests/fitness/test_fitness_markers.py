@@ -73,6 +73,26 @@ def test_backends_agree_on_noisy_detections(model, true_pose, rig, detections):
         b = make_fitness(kind, model, backend="reference").bind(frame)(poses)
         np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-300)
         assert np.isfinite(a).all() and (a > 0).all() and (a <= 1).all()
+    a = ReprojectionFitness(model, symmetric=False).bind(frame)(poses)
+    b = ReprojectionFitness(model, symmetric=False, backend="reference").bind(frame)(poses)
+    np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-300)
+
+
+def test_reprojection_explains_every_detection(model, true_pose, rig, detections):
+    """The symmetric term charges a detection no model point explains; the one-sided score cannot see it."""
+    X = model.joints15(true_pose[None])[0]
+    extra = X[4] + np.array([0.0, 0.0, -300.0])  # a marker 30 cm below the left wrist (e.g. on the hip)
+    dets = [np.vstack([d, cam.project(extra[None])]) for d, cam in zip(detections, rig, strict=True)]
+    frame = MarkerFrame(dets, rig)
+    one_sided = ReprojectionFitness(model, symmetric=False).bind(frame)
+    symmetric = ReprojectionFitness(model).bind(frame)
+    assert one_sided(true_pose[None])[0] == pytest.approx(1.0)
+    w = symmetric(true_pose[None])[0]
+    e = np.array([np.linalg.norm(cam.project(X) - cam.project(extra[None]), axis=1).min() for cam in rig])
+    n_terms = 15 * len(rig) + 16 * len(rig)  # model points + detections (15 true + 1 extra) per view
+    expected = math.exp(-np.log1p((np.minimum(e, 50.0) / 5.0) ** 2).sum() / n_terms)
+    assert w == pytest.approx(expected, rel=1e-9)
+    assert w < 1.0
 
 
 def test_reprojection_is_smooth_and_bounded(model, true_pose, rig, detections):

@@ -22,9 +22,18 @@ def track(
     out: Path = typer.Option(None, help="Results folder (default results/<sequence>-<algo>-<fps>fps)."),
     resume: bool = typer.Option(False, help="Continue an interrupted run in --out without redoing frames."),
     model: str = typer.Option("balan31", help="Body model name or spec file."),
-    fitness: str = typer.Option("auto", help="auto, silhouette_edge, deutscher_reid, markers or reprojection."),
+    fitness: str = typer.Option(
+        "auto", help="auto (silhouette_edge; reprojection for aapso*), silhouette_edge, deutscher_reid, "
+                     "markers (Sharifi et al.'s epipolar score) or reprojection (robust, symmetric)."),
     downsample: int = typer.Option(1, help="Track on images downsampled by 2 or 4 (faster)."),
     backend: str = typer.Option("numba", help="Fitness backend: numba (default) or reference."),
+    fitness_options: str = typer.Option(
+        "", help="Fitness options over each stage's own, key=value[,...]: terms=silhouette (no edge term), "
+                 "edge_top=false (no torso top edge), edge_cones=all|torso|torso+upper."),
+    features: str = typer.Option(
+        "", help="Image feature settings, key=value[,...]: edge_threshold (grey-level step, default 40), "
+                 "edge_dilate_px, edge_sigma_px, silhouette_threshold (default 25), silhouette_blur_px, "
+                 "silhouette_open_px, silhouette_close_px."),
     workers: int = typer.Option(None, help="Parallel worker processes (default: one per core, at most --runs)."),
     scheduler: str = typer.Option(None, help="Run on a Dask cluster at this address (dask.distributed)."),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object with the summary."),
@@ -39,7 +48,8 @@ def track(
     from swarmpose.track.tracker import TrackConfig
 
     cfg = TrackConfig(algo=algo, fps=fps, model=model, fitness=fitness, backend=backend,
-                      downsample=downsample, seed=seed)
+                      downsample=downsample, seed=seed, fitness_options=fitness_options,
+                      feature_options=features)
     seq = resolve_sequence(source, progress=not json_out)
     if out is None:
         if isinstance(seq, str):  # a dataset spec such as humaneva:/data/HumanEva/S1/Walking_1

@@ -30,7 +30,8 @@ Factory
 * ``"deutscher_reid"`` -- :class:`DeutscherReidFitness`, Deutscher & Reid eq. 14-17;
 * ``"markers"`` -- :class:`MarkerFitness`, Sharifi et al. eq. 7-12 (``rho = 5`` px, penalty 200,
   ``w = exp(-mean score)``);
-* ``"reprojection"`` -- :class:`ReprojectionFitness`, robust reprojection error;
+* ``"reprojection"`` -- :class:`ReprojectionFitness`, robust symmetric reprojection error (points to
+  detections and detections to points; the tracker's default for the AAPSO family);
 
 and backends ``"numba"`` (default: fused numba kernels on all cores) and ``"reference"`` (plain
 numpy/OpenCV, slow, used by the tests). A GPU backend is one more entry in
