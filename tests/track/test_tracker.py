@@ -120,3 +120,25 @@ def test_feature_options_reach_the_features_and_the_record(short_sequence, tmp_p
     assert res.exit_code == 0, res.output
     config = json.loads((tmp_path / "r" / "config.json").read_text())
     assert config["feature_options"] == "edge_threshold=15" and config["fitness_options"] == "terms=silhouette"
+
+
+def test_resume_checks_the_configuration(short_sequence, tmp_path):
+    from swarmpose.errors import ConfigError
+
+    cfg = TrackConfig(algo="sppso", fps=20.0, seed=2)
+    first = track_runs(short_sequence, cfg, 1, tmp_path, workers=1, progress=False)
+    cfg_file = tmp_path / "config.json"
+    record = json.loads(cfg_file.read_text())
+    # a folder written before a setting existed resumes (the setting had its default)
+    for key in ("feature_options", "fitness_options"):
+        del record[key]
+    cfg_file.write_text(json.dumps(record))
+    again = track_runs(short_sequence, cfg, 1, tmp_path, resume=True, workers=1, progress=False)
+    assert again["d_mean_mm"] == first["d_mean_mm"]
+    with pytest.raises(ConfigError, match="another configuration"):
+        track_runs(short_sequence, TrackConfig(algo="sppso", fps=20.0, seed=3), 1, tmp_path, resume=True,
+                   workers=1, progress=False)
+    record["fitness_kind"] = "deutscher_reid"  # "auto" resolved differently when the folder was written
+    cfg_file.write_text(json.dumps(record))
+    with pytest.raises(ConfigError, match="another configuration"):
+        track_runs(short_sequence, cfg, 1, tmp_path, resume=True, workers=1, progress=False)

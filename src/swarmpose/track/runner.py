@@ -117,7 +117,10 @@ def track_runs(sequence: str | Path, config: TrackConfig, runs: int, out_dir: Pa
     record = config_record(setup, runs)
     if cfg_file.is_file() and resume:
         old = json.loads(cfg_file.read_text())
-        same = {k: old.get(k) for k in asdict(config)} == {k: record[k] for k in asdict(config)}
+        defaults = asdict(TrackConfig())  # a folder written before a setting existed used its default
+        same = {k: old.get(k, defaults[k]) for k in asdict(config)} == {k: record[k] for k in asdict(config)}
+        # "auto" may resolve differently in another version (AAPSO: markers -> reprojection)
+        same = same and old.get("fitness_kind", record["fitness_kind"]) == record["fitness_kind"]
         if not same:
             from swarmpose.errors import ConfigError
 
