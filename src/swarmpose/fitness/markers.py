@@ -16,8 +16,8 @@ frame origin of the body model).
   ``log(1 + min(e, e_max)^2 / tau^2)``; ``w = exp(-mean loss)``. Smooth near the optimum (the
   epipolar score depends on the pose only through which detections match, so it is flat within
   ``rho`` of them), and bounded for missing or false detections. The detection-to-model half stops
-  two model points from sharing one detection while another detection goes unexplained (a swinging
-  wrist settling on the hip marker: the one-sided score is as good there as at the truth).
+  two model points from sharing one detection while another detection goes unexplained (a model
+  wrist settling on another joint's marker scores as well there as at the truth one-sided).
 
 Backends: ``"numba"`` (default; numba kinematics, then the matching vectorised over the batch in
 numpy, with the epipolar distances of all detection pairs tabulated once per frame) and
