@@ -38,6 +38,7 @@ def floor(seq_path: str, frames: list[int], rounds: int, options: dict, seed: in
           features: str = "") -> list[dict]:
     from swarmpose import optim
     from swarmpose.body.priors import HardPriors
+    from swarmpose.features import parse_feature_options
     from swarmpose.io.sequence import open_sequence
     from swarmpose.track.tracker import TrackConfig, _frame_observation, _make_fitness, prepare_track
 
@@ -46,6 +47,7 @@ def floor(seq_path: str, frames: list[int], rounds: int, options: dict, seed: in
     constraint = HardPriors(model).valid
     seq = open_sequence(seq_path)
     backgrounds = seq.backgrounds()
+    feature_options = parse_feature_options(features)
 
     def search(fps: float, x0: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, float]:
         opt = optim.get("sppso", model=model, fps=fps).start(x0, rng, constraint=constraint)
@@ -58,7 +60,7 @@ def floor(seq_path: str, frames: list[int], rounds: int, options: dict, seed: in
     try:
         for i in frames:
             fit.bind(_frame_observation(seq, int(setup.frame_indices[i]), "silhouette_edge", 1, backgrounds,
-                                        features))
+                                        feature_options))
             xt, gt = setup.ik_params[i], setup.gt_joints[i]
             ft = float(fit.evaluate(xt[None], options)[0])
             rng = np.random.default_rng([seed, i])

@@ -57,7 +57,8 @@ FEATURE_OPTIONS: dict[str, tuple[str, str]] = {
     "edge_dilate_px": ("edge", "dilate_px"),
     "edge_sigma_px": ("edge", "sigma_px"),
 }
-_INT_OPTIONS = ("threshold", "open_px", "close_px", "dilate_px")
+_WHOLE_NUMBER_OPTIONS = frozenset({"silhouette_threshold", "silhouette_open_px", "silhouette_close_px",
+                                   "edge_dilate_px"})
 
 
 def _as_gray(image: np.ndarray, name: str) -> np.ndarray:
@@ -351,7 +352,7 @@ def parse_feature_options(text: str) -> tuple[dict, dict]:
             v = float(value)
         except ValueError:
             raise ConfigError(f"feature option {key} needs a number, got {value!r}") from None
-        if kw in _INT_OPTIONS and (kw != "threshold" or target == "silhouette"):
+        if key in _WHOLE_NUMBER_OPTIONS:
             if v != int(v):
                 raise ConfigError(f"feature option {key} needs a whole number, got {value!r}")
             v = int(v)

@@ -225,7 +225,8 @@ def _make_fitness(setup: TrackSetup):
 
 
 def _frame_observation(seq: Any, k: int, kind: str, downsample: int, backgrounds: Any,
-                       feature_options: str = ""):
+                       feature_options: tuple[dict, dict] = ({}, {})):
+    """One frame's observation; ``feature_options`` = :func:`swarmpose.features.parse_feature_options`'s pair."""
     if kind in MARKER_FITNESS:
         from swarmpose.fitness import MarkerFrame
 
@@ -233,12 +234,12 @@ def _frame_observation(seq: Any, k: int, kind: str, downsample: int, backgrounds
         if markers is None:
             raise DataError(f"{seq}: frame {k} has no 2D marker detections (needed by the {kind} fitness)")
         return MarkerFrame(markers, list(seq.cameras))
-    from swarmpose.features import compute_features, parse_feature_options
+    from swarmpose.features import compute_features
 
     images = seq.images(k)
     if images is None:
         raise DataError(f"{seq}: frame {k} has no images (needed by the {kind} fitness)")
-    sil_opts, edge_opts = parse_feature_options(feature_options)
+    sil_opts, edge_opts = feature_options
     return compute_features(images, backgrounds, list(seq.cameras), downsample=downsample,
                             silhouette_options=sil_opts, edge_options=edge_opts)
 
@@ -259,12 +260,14 @@ def run_tracker(
     """
     from swarmpose import optim
     from swarmpose.experiments.suites import parse_fitness_options
+    from swarmpose.features import parse_feature_options
     from swarmpose.io.sequence import open_sequence
 
     cfg = setup.config
     model = setup.model
     algo = cfg.optimizer(model)
     extra_options = parse_fitness_options(cfg.fitness_options)
+    feature_options = parse_feature_options(cfg.feature_options)
     constraint = HardPriors(model).valid
     fitness = _make_fitness(setup)
     T, D = len(setup.frame_indices), model.n_params
@@ -301,7 +304,7 @@ def run_tracker(
                 break
             t0 = time.perf_counter()
             fitness.bind(_frame_observation(seq, int(setup.frame_indices[i]), cfg.fitness_kind,
-                                            cfg.downsample, backgrounds, cfg.feature_options))
+                                            cfg.downsample, backgrounds, feature_options))
             opt = algo.start(x_prev, rng, constraint=constraint, carry=carry)
             while not opt.done:
                 poses = opt.ask()
