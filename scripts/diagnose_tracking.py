@@ -11,6 +11,15 @@ Two measurements (issue 6 investigation; numbers quoted in its note):
       when nothing beats it). Its distance from the truth is the error the fitness itself prefers -- an
       "observation floor" that no search can go below on these images (the IK floor ignores the images).
 
+``oracle SEQ`` -- track with ideal observations in place of the image-derived ones, to split the error
+    between the search and the mismatch of model and images. ``--silhouettes model`` replaces each view's
+    observed silhouette by the tracker's own cone model rendered at the IK pose (the best model fit to the
+    truth); ``--edges model`` replaces the edge map by the model's own edges at the IK pose (every visible
+    cone side line and the torso's top, as the edge fitness samples them, blurred like ``edge_map``);
+    ``--edges outline`` by the outline of the model's silhouette only (no inner edges); ``real`` keeps the
+    image-derived observation. With both ``model`` the images show exactly what the model expects, so the
+    remaining error is the search's own (1000 evaluations, sigma, ambiguities of silhouettes and edges).
+
 ``drift RESULTS_DIR`` -- for a finished ``swarmpose track`` results folder: mean |error| of every
     parameter against the IK fit (degrees / mm), largest first, and the correlation of the root heading
     error with the spine-twist error (a pelvis that turns while the spine twists back keeps the shoulders
@@ -18,6 +27,8 @@ Two measurements (issue 6 investigation; numbers quoted in its note):
 
 Run:  .venv/bin/python scripts/diagnose_tracking.py floor cache/sequences/<walk> [--rounds 20] [--json]
           [--terms silhouette|edge] [--features edge_sigma_px=4]
+      .venv/bin/python scripts/diagnose_tracking.py oracle cache/sequences/<walk> --fps 60 --runs 5
+          [--silhouettes model|real] [--edges model|outline|real] [--terms silhouette] [--algo sppso]
       .venv/bin/python scripts/diagnose_tracking.py drift results/<run folder>
 """
 
@@ -80,6 +91,62 @@ def floor(seq_path: str, frames: list[int], rounds: int, options: dict, seed: in
     return rows
 
 
+def _model_edge_map(model, pose: np.ndarray, camera, shape: tuple[int, int], mode: str,
+                    sigma_px: float) -> np.ndarray:
+    """The edge map the model itself would produce at ``pose`` (``mode`` "model" or "outline")."""
+    import cv2
+
+    from swarmpose.render import render_silhouette
+    from swarmpose.render.reference import edge_samples_reference, reference_geometry
+
+    if mode == "outline":
+        mask = render_silhouette(model, pose, camera)
+        binary = cv2.morphologyEx(mask, cv2.MORPH_GRADIENT, np.ones((2, 2), np.uint8))
+    else:
+        geom = reference_geometry(model, pose[None], [camera])
+        n_cones = geom.cones.n_vertices.shape[2]
+        xy, _, _, visible = edge_samples_reference(geom, 0, 0, np.ones(n_cones, bool), 0, 0.5)
+        q = np.round(xy[visible]).astype(int)
+        inside = (q[:, 0] >= 0) & (q[:, 0] < shape[1]) & (q[:, 1] >= 0) & (q[:, 1] < shape[0])
+        binary = np.zeros(shape, np.uint8)
+        binary[q[inside, 1], q[inside, 0]] = 1
+    k = 2 * int(np.ceil(3.0 * sigma_px)) + 1  # as features.edge_map
+    e = cv2.GaussianBlur(binary.astype(np.float32), (k, k), sigma_px)
+    return e / max(float(e.max()), 1e-12)
+
+
+def oracle(seq_path: str, fps: float, runs: int, silhouettes: str, edges: str, algo: str, terms: str,
+           seed: int) -> dict:
+    import dataclasses
+
+    from swarmpose.render import render_silhouette
+    from swarmpose.track.tracker import TrackConfig, prepare_track, run_tracker
+
+    config = TrackConfig(algo=algo, fps=fps, seed=seed, fitness="silhouette_edge",
+                         fitness_options=f"terms={terms}" if terms else "")
+    setup = prepare_track(seq_path, config, None)
+    ik = {int(k): setup.ik_params[i] for i, k in enumerate(setup.frame_indices)}
+
+    def observe(k: int, frame):
+        pose, changes = ik[k], {}
+        if silhouettes == "model":
+            changes["silhouettes"] = np.stack([render_silhouette(setup.model, pose, cam)
+                                               for cam in frame.cameras]).astype(frame.silhouettes.dtype)
+        if edges != "real":
+            changes["edges"] = np.stack([_model_edge_map(setup.model, pose, cam, frame.edges.shape[1:], edges, 2.0)
+                                         for cam in frame.cameras]).astype(np.float32)
+        return dataclasses.replace(frame, **changes) if changes else frame
+
+    per_run = [run_tracker(setup, r, None, observe=observe).errors for r in range(runs)]
+    return {"sequence": seq_path, "algo": algo, "fps": fps, "runs": runs, "silhouettes": silhouettes,
+            "edges": edges, "terms": terms or "silhouette+edge", "seed": seed,
+            "d_mean_mm": float(np.mean([e["d_mean"] for e in per_run])),
+            "d_max_mm": float(np.mean([e["d_max"] for e in per_run])),
+            "mmta": float(np.mean([e["mmta"] for e in per_run])),
+            "ik_floor_mm": setup.ik_floor_mm,
+            "d_mean_per_run_mm": [round(float(e["d_mean"]), 2) for e in per_run]}
+
+
 def drift(results: Path) -> dict:
     ik = np.load(results / "ik.npz", allow_pickle=False)["params"]
     runs = sorted(results.glob("run_*/track.npz"))
@@ -114,9 +181,22 @@ def main() -> None:
     a.add_argument("--json", action="store_true")
     b = sub.add_parser("drift")
     b.add_argument("results", type=Path)
+    o = sub.add_parser("oracle")
+    o.add_argument("sequence")
+    o.add_argument("--fps", type=float, default=60.0)
+    o.add_argument("--runs", type=int, default=5)
+    o.add_argument("--silhouettes", choices=("model", "real"), default="model")
+    o.add_argument("--edges", choices=("model", "outline", "real"), default="model")
+    o.add_argument("--algo", default="sppso")
+    o.add_argument("--terms", default="", help="fitness terms, e.g. 'silhouette' (default: f_s + f_e)")
+    o.add_argument("--seed", type=int, default=0)
     args = ap.parse_args()
     if args.cmd == "drift":
         print(json.dumps(drift(args.results), indent=1))
+        return
+    if args.cmd == "oracle":
+        print(json.dumps(oracle(args.sequence, args.fps, args.runs, args.silhouettes, args.edges, args.algo,
+                                args.terms, args.seed), indent=1))
         return
     options = {"terms": args.terms} if args.terms else {}
     rows = floor(args.sequence, [int(s) for s in args.frames.split(",")], args.rounds, options, args.seed,

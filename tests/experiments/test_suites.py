@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -22,13 +24,17 @@ def model():
 def test_sppso_variant_budgets(model, variant, evals):
     cfg = apply_variant(optim.get("sppso", model=model, fps=20.0), variant)
     assert cfg.evals_per_frame == evals
+    assert _evaluations_of_one_frame(cfg, model) == evals
+
+
+def _evaluations_of_one_frame(cfg, model) -> int:
     opt = cfg.start(np.zeros(model.n_params), np.random.default_rng(0))
     n = 0
     while not opt.done:
         x = opt.ask()
         opt.tell(-np.sum(x**2, axis=1))
         n += len(x)
-    assert n == evals
+    return n
 
 
 def test_aapso_global_and_hard_variants(model):
@@ -43,12 +49,30 @@ def test_aapso_global_and_hard_variants(model):
     assert all((s.active & torso).any() for s in base.stages[1:])  # soft: torso searched at sigma/10
 
 
+def test_apf_particles_and_layers_variant(model):
+    """Sharifi et al. sec. 4.10 ran Deutscher & Reid's APF with 700 particles x 5 layers."""
+    cfg = apply_variant(optim.get("apf-dr05", model=model, fps=25.0), "apf=700x5")
+    assert (cfg.n_particles, cfg.n_layers, cfg.evals_per_frame) == (700, 5, 3500)
+    assert _evaluations_of_one_frame(cfg, model) == 3500
+    with pytest.raises(ConfigError, match="annealed particle filter"):
+        apply_variant(optim.get("sppso", model=model, fps=25.0), "apf=700x5")
+    with pytest.raises(ConfigError, match="apf=PxL"):
+        apply_variant(optim.get("apf", model=model, fps=25.0), "apf=700")
+
+
 def test_every_suite_names_known_algorithms():
     for name in SUITES:
         entries = suite(name)
         assert entries and all(e.algo in optim.names() for e in entries)
     with pytest.raises(ConfigError, match="thesis-apf"):
         suite("nope")
+
+
+def test_marker_suites_differ_only_in_the_fitness():
+    paper = [e for e in suite("markers") if e.fitness == "markers"]
+    repro = suite("markers-reprojection")
+    assert len(paper) == len(repro) == 6 and all(e.fitness == "reprojection" for e in repro)
+    assert [dataclasses.replace(e, fitness="reprojection") for e in paper] == repro
 
 
 def test_fitness_option_parsing():

@@ -99,9 +99,28 @@ def test_adaptive_noise_follows_set_covariance_and_spares_frozen_parameters():
     for x, _ in out:
         assert np.all(x[:, 1] == 0.0)  # no spread -> no noise (eq. 18)
     x, parents = out[1]
-    noise = x - parents
-    assert noise[:, 0].var() == pytest.approx(0.5 * parents[:, 0].var(), rel=0.25)
-    assert noise[:, 2].var() == pytest.approx(0.5 * parents[:, 2].var(), rel=0.25)
+    # shrink by sqrt(1 - c) towards the mean, add N(0, c Cov): the diffused set keeps the parents' mean
+    # and variances (DR05 sec. 6.1: "not enough to increase the variance of any given parameter") ...
+    for j in (0, 2):
+        assert x[:, j].var() == pytest.approx(parents[:, j].var(), rel=0.25)
+        assert abs(x[:, j].mean() - parents[:, j].mean()) < 0.15 * parents[:, j].std()
+    # ... while every particle moves off its parent (the gaps between repeated draws get filled):
+    # x - parents = (sqrt(1 - c) - 1)(p - mean) + noise, variance ((1 - sqrt(0.5))^2 + 0.5) Var(p)
+    moved = x - parents
+    assert moved[:, 0].var() == pytest.approx((0.5 + (1 - np.sqrt(0.5)) ** 2) * parents[:, 0].var(), rel=0.25)
+
+
+def test_adaptive_diffusion_keeps_unlocalised_parameters_from_growing():
+    """A 31-D set whose weights depend on one parameter: over 10 layers the other 30 keep their spread
+    (plain N(0, c Cov) noise with c = 0.68 would multiply their variance by ~1.68 per layer)."""
+    d = 31
+    x0 = np.zeros(d)
+    apf = AnnealedParticleFilter.start(x0, np.full(d, 0.1), 200, 10, np.random.default_rng(3))
+    stds = []
+    _run(apf, lambda x: -50.0 * np.abs(x[:, 0] - 0.05), lambda a, x: stds.append(x.std(axis=0)))
+    first, last = stds[0], stds[-1]
+    assert np.all(last[1:] < 1.5 * first[1:]), last[1:] / first[1:]
+    assert last[0] < 0.5 * first[0]  # the parameter that matters is localised
 
 
 def test_crossover_fraction_mixes_parents():
@@ -216,14 +235,22 @@ def _track(make, d, n, layers, diffusion, crossover, seed, frames=20, step=0.1):
 
 
 @pytest.mark.slow
-def test_dr05_adaptive_diffusion_needs_fewer_particles():
-    """DR05 sec. 6.1: "successful tracking with fewer than half the number of particles"."""
+def test_dr05_adaptive_diffusion_tracks_the_planar_arm_like_the_fixed_schedule():
+    """DR05 sec. 6.1 reports "successful tracking with fewer than half the number of particles".
+
+    That held here (median error 0.62x fixed-100 with adaptive-50) only with plain eq. 18 noise, which
+    grows every unlocalised parameter's variance by (1 + c) per layer and blew up on the 31-parameter
+    body (316 mm on the walk). With the variance-keeping shrinkage the 4-link arm tracks about as well as
+    with the fixed schedule at equal particles (measured medians: 0.0325 vs 0.0297 at 50 particles,
+    0.0244 vs 0.0220 at 100), so the 2x claim does not reproduce; what the test keeps is that adaptive
+    diffusion tracks (errors of a few hundredths of a radian) and improves with particles."""
     seeds = range(12)
     adaptive50 = np.array([_track(planar_arm, 4, 50, 6, "adaptive", 0.0, s, frames=15)[0] for s in seeds])
-    fixed100 = np.array([_track(planar_arm, 4, 100, 6, "fixed", 0.0, s, frames=15)[0] for s in seeds])
-    # half the particles, lower mean tracking error (measured: 0.62x the median with 20 frames)
-    assert np.median(adaptive50) < 0.85 * np.median(fixed100), (np.median(adaptive50), np.median(fixed100))
-    assert np.mean(adaptive50 < fixed100) >= 0.7
+    adaptive100 = np.array([_track(planar_arm, 4, 100, 6, "adaptive", 0.0, s, frames=15)[0] for s in seeds])
+    fixed50 = np.array([_track(planar_arm, 4, 50, 6, "fixed", 0.0, s, frames=15)[0] for s in seeds])
+    assert np.median(adaptive50) < 1.25 * np.median(fixed50), (np.median(adaptive50), np.median(fixed50))
+    assert np.median(adaptive100) < 0.9 * np.median(adaptive50)
+    assert np.median(adaptive50) < 0.05
 
 
 @pytest.mark.slow

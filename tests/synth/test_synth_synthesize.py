@@ -118,3 +118,28 @@ def test_cli_synth_json_and_show(walk_clip_path, short_walk: SynthReport, tmp_pa
     assert sheet.shape[1] == 3 * 644 and sheet.shape[0] > 4 * 484
     res = runner.invoke(app, ["show", str(short_walk.path), "--frame", "99"])
     assert res.exit_code == 2 and "outside" in res.stderr
+
+
+def test_cli_synth_albedo(walk_clip_path, tmp_path):
+    """``--albedo`` dresses the observation body (recorded in the provenance); bad input names the materials."""
+    from swarmpose.io.sequence import open_sequence
+
+    runner = CliRunner()
+    args = ["synth", str(walk_clip_path), "--max-frames", "1", "--no-measure", "--no-progress", "--json"]
+    res = runner.invoke(app, [*args, "--out", str(tmp_path / "light"), "--albedo", "shirt=0.9, trousers=0.05"])
+    assert res.exit_code == 0, res.output
+    res = runner.invoke(app, [*args, "--out", str(tmp_path / "plain")])
+    assert res.exit_code == 0, res.output
+    with open_sequence(tmp_path / "light") as light, open_sequence(tmp_path / "plain") as plain:
+        albedo = light.provenance["settings"]["body"]["albedo"]
+        assert albedo["shirt"] == 0.9 and albedo["trousers"] == 0.05 and albedo["skin"] == 0.28
+        import cv2
+
+        mask = np.asarray(plain.masks(0)[0]) != 0
+        near = cv2.dilate(mask.astype(np.uint8), np.ones((9, 9), np.uint8)) != 0  # the optics blur the rim
+        a, b = (np.asarray(s.images(0)[0], dtype=float) for s in (light, plain))
+        # same seed and pose: only the person's shading changes (lighter shirt, darker trousers)
+        assert np.abs(a - b)[~near].max() <= 1.0
+        assert (a - b)[mask].max() > 60 and (a - b)[mask].min() < -20
+    res = runner.invoke(app, [*args, "--out", str(tmp_path / "bad"), "--albedo", "shrt=0.5"])
+    assert res.exit_code == 2 and "shrt=0.5" in res.stderr and "shoes" in res.stderr

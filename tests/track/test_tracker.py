@@ -142,3 +142,46 @@ def test_resume_checks_the_configuration(short_sequence, tmp_path):
     cfg_file.write_text(json.dumps(record))
     with pytest.raises(ConfigError, match="another configuration"):
         track_runs(short_sequence, cfg, 1, tmp_path, resume=True, workers=1, progress=False)
+
+
+def test_observe_hook_sees_every_frame_and_its_observation_is_tracked(short_sequence):
+    """``run_tracker(observe=...)`` (used by the oracle diagnostics) gets each processed frame and what it
+    returns is what the fitness is bound to."""
+    import dataclasses
+
+    setup = prepare_track(short_sequence, TrackConfig(algo="sppso", fps=20.0, seed=2), None)
+    seen = []
+
+    def passthrough(k, frame):
+        seen.append(k)
+        return frame
+
+    plain = run_tracker(setup, 0, None)
+    same = run_tracker(setup, 0, None, observe=passthrough)
+    assert seen == [int(k) for k in setup.frame_indices] == [0, 3, 6, 9]
+    assert np.array_equal(same.params, plain.params)
+
+    def no_silhouette(k, frame):
+        return dataclasses.replace(frame, silhouettes=np.zeros_like(frame.silhouettes))
+
+    blind = run_tracker(setup, 0, None, observe=no_silhouette)
+    assert not np.array_equal(blind.params, plain.params)
+    assert np.all(blind.scores < plain.scores)  # nothing of the model overlaps an empty silhouette
+
+
+def test_track_variant_option(short_sequence, tmp_path):
+    """``swarmpose track --variant`` reaches the optimiser (its budget is recorded) and bad ones fail early."""
+    from typer.testing import CliRunner
+
+    from swarmpose.cli.app import app
+
+    runner = CliRunner()
+    res = runner.invoke(app, ["track", str(short_sequence), "--algo", "apf-dr05", "--variant", "apf=100x3",
+                              "--fps", "20", "--workers", "1", "--out", str(tmp_path / "r"), "--json"])
+    assert res.exit_code == 0, res.output
+    data = json.loads(res.stdout.strip().splitlines()[-1])
+    assert data["evals_per_frame"] == 300
+    assert json.loads((tmp_path / "r" / "config.json").read_text())["optim_variant"] == "apf=100x3"
+    res = runner.invoke(app, ["track", str(short_sequence), "--algo", "sppso", "--variant", "apf=100x3",
+                              "--fps", "20", "--workers", "1", "--out", str(tmp_path / "bad"), "--json"])
+    assert res.exit_code == 2 and "annealed particle filter" in res.stderr and res.stdout == ""

@@ -15,7 +15,9 @@ from swarmpose.cli.demo import DEFAULT_CLIP
 @fail_on_user_error
 def compare(
     suite: str = typer.Argument(..., help="thesis-apf, thesis-partitions, thesis-budget, thesis-swarm, "
-                                          "thesis-fitness or markers."),
+                                          "thesis-fitness, markers (Sharifi et al.'s epipolar "
+                                          "score) or markers-reprojection (the same comparisons with "
+                                          "the reprojection fitness)."),
     sources: list[str] = typer.Option(None, "--clip", help="Sequence folders or BVH clips (repeatable); "
                                                             "default: the shared walking clip."),
     runs: int = typer.Option(5, min=1, help="Runs per entry."),

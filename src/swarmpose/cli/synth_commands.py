@@ -12,6 +12,24 @@ from swarmpose.cli.app import app
 from swarmpose.cli.common import console, fail_on_user_error, print_json
 
 
+def parse_albedo(text: str) -> dict[str, float]:
+    """``"shirt=0.6,trousers=0.15"`` over :class:`~swarmpose.synth.BodySettings`'s default albedos."""
+    from swarmpose.errors import ConfigError
+    from swarmpose.synth import BodySettings
+    from swarmpose.synth.body import MATERIALS
+
+    out = dict(BodySettings().albedo)
+    for item in filter(None, (s.strip() for s in text.split(","))):
+        key, sep, value = (s.strip() for s in item.partition("="))
+        if not sep or key not in MATERIALS:
+            raise ConfigError(f"--albedo: {item!r} is not material=value with a material of {', '.join(MATERIALS)}")
+        try:
+            out[key] = float(value)
+        except ValueError:
+            raise ConfigError(f"--albedo: {key}={value!r} is not a number") from None
+    return out
+
+
 @app.command()
 @fail_on_user_error
 def synth(
@@ -25,6 +43,10 @@ def synth(
     marker_noise: Annotated[float, typer.Option("--marker-noise-px", help="Gaussian pixel noise of detections (sd).")] = 1.0,
     no_occlusion: Annotated[bool, typer.Option("--no-occlusion", help="Keep markers hidden behind the body.")] = False,
     clothing: Annotated[float, typer.Option("--clothing-mm", help="Clothing bulk added to clothed parts, mm.")] = 10.0,
+    albedo: Annotated[str, typer.Option(help="Grey reflectance per material over the defaults, material=value[,...] "
+                                             "with materials shirt (0.34), trousers (0.29), skin (0.28), hair "
+                                             "(0.20), shoes (0.21); e.g. shirt=0.6,trousers=0.15 for clothes "
+                                             "that show inner edges.")] = "",
     noise: Annotated[float, typer.Option("--noise-sigma", help="Sensor noise, grey levels (sd).")] = 2.5,
     max_frames: Annotated[int | None, typer.Option(help="Only the first N frames.")] = None,
     fs_stride: Annotated[int, typer.Option(help="Evaluate the tracker model's f_s every N-th frame (0: never).")] = 5,
@@ -45,7 +67,8 @@ def synth(
     msettings = MarkerSettings(markers=markers, dropout=dropout, false_per_view=false_per_view,
                                noise_px=marker_noise, occlusion=not no_occlusion)
     report = synthesize(clip, out, fps=fps, seed=seed, markers=msettings,
-                        body=BodySettings(clothing_mm=clothing), scene=SceneSettings(noise_sigma=noise),
+                        body=BodySettings(clothing_mm=clothing, albedo=parse_albedo(albedo)),
+                        scene=SceneSettings(noise_sigma=noise),
                         max_frames=max_frames, fs_stride=fs_stride, measure=not no_measure, overwrite=force,
                         progress=progress)
     data = report.to_dict()

@@ -25,6 +25,9 @@ def track(
     fitness: str = typer.Option(
         "auto", help="auto (silhouette_edge; reprojection for aapso*), silhouette_edge, deutscher_reid, "
                      "markers (Sharifi et al.'s epipolar score) or reprojection (robust, symmetric)."),
+    variant: str = typer.Option(
+        "", help="Optimiser variant, as the compare suites use them: budget=B (SPPSO family: iterations x "
+                 "B/1000), stage2=PxI, global=PxI, hard, apf=PxL (particles x layers of an APF)."),
     downsample: int = typer.Option(1, help="Track on images downsampled by 2 or 4 (faster)."),
     backend: str = typer.Option("numba", help="Fitness backend: numba (default) or reference."),
     fitness_options: str = typer.Option(
@@ -49,7 +52,7 @@ def track(
 
     cfg = TrackConfig(algo=algo, fps=fps, model=model, fitness=fitness, backend=backend,
                       downsample=downsample, seed=seed, fitness_options=fitness_options,
-                      feature_options=features)
+                      feature_options=features, optim_variant=variant)
     seq = resolve_sequence(source, progress=not json_out)
     if out is None:
         if isinstance(seq, str):  # a dataset spec such as humaneva:/data/HumanEva/S1/Walking_1

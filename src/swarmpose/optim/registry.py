@@ -321,8 +321,8 @@ class APFConfig(OptimizerConfig):
             raise ConfigError(f"{self.name}: alpha must be in (0, 1), got {self.alpha}")
         if self.diffusion not in ("adaptive", "fixed"):
             raise ConfigError(f"{self.name}: diffusion must be 'adaptive' or 'fixed', got {self.diffusion!r}")
-        if self.diffusion_scale is not None and not self.diffusion_scale > 0:
-            raise ConfigError(f"{self.name}: diffusion_scale must be > 0 or None")
+        if self.diffusion_scale is not None and not 0.0 < self.diffusion_scale < 1.0:
+            raise ConfigError(f"{self.name}: diffusion_scale must be in (0, 1) or None")
         if not 0 <= self.crossover <= 1:
             raise ConfigError(f"{self.name}: crossover must be in [0, 1], got {self.crossover}")
         if self.estimate not in ("mean", "max"):

@@ -252,11 +252,14 @@ def run_tracker(
     resume: bool = False,
     progress: Callable[[int, int], None] | None = None,
     stop_after: int | None = None,
+    observe: Callable[[int, Any], Any] | None = None,
 ) -> RunResult:
     """Track one run (``run`` selects the generator) and write ``out_dir/run_XXX/``.
 
     ``stop_after`` ends the run after that many frames (used to test resuming; the progress file
-    stays and ``resume=True`` continues from it).
+    stays and ``resume=True`` continues from it). ``observe(k, observation)``, when given, receives
+    each frame's observation (sequence frame ``k``) and returns the one to track against: the
+    diagnostics in ``scripts/diagnose_tracking.py oracle`` use it to swap in ideal silhouettes or edges.
     """
     from swarmpose import optim
     from swarmpose.experiments.suites import parse_fitness_options
@@ -303,8 +306,9 @@ def run_tracker(
             if stop_after is not None and i >= stop_after:
                 break
             t0 = time.perf_counter()
-            fitness.bind(_frame_observation(seq, int(setup.frame_indices[i]), cfg.fitness_kind,
-                                            cfg.downsample, backgrounds, feature_options))
+            k = int(setup.frame_indices[i])
+            observation = _frame_observation(seq, k, cfg.fitness_kind, cfg.downsample, backgrounds, feature_options)
+            fitness.bind(observation if observe is None else observe(k, observation))
             opt = algo.start(x_prev, rng, constraint=constraint, carry=carry)
             while not opt.done:
                 poses = opt.ask()
