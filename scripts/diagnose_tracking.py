@@ -91,11 +91,11 @@ def floor(seq_path: str, frames: list[int], rounds: int, options: dict, seed: in
     return rows
 
 
-def _model_edge_map(model, pose: np.ndarray, camera, shape: tuple[int, int], mode: str,
-                    sigma_px: float) -> np.ndarray:
+def _model_edge_map(model, pose: np.ndarray, camera, shape: tuple[int, int], mode: str) -> np.ndarray:
     """The edge map the model itself would produce at ``pose`` (``mode`` "model" or "outline")."""
     import cv2
 
+    from swarmpose.features import blur_edges
     from swarmpose.render import render_silhouette
     from swarmpose.render.reference import edge_samples_reference, reference_geometry
 
@@ -110,9 +110,7 @@ def _model_edge_map(model, pose: np.ndarray, camera, shape: tuple[int, int], mod
         inside = (q[:, 0] >= 0) & (q[:, 0] < shape[1]) & (q[:, 1] >= 0) & (q[:, 1] < shape[0])
         binary = np.zeros(shape, np.uint8)
         binary[q[inside, 1], q[inside, 0]] = 1
-    k = 2 * int(np.ceil(3.0 * sigma_px)) + 1  # as features.edge_map
-    e = cv2.GaussianBlur(binary.astype(np.float32), (k, k), sigma_px)
-    return e / max(float(e.max()), 1e-12)
+    return blur_edges(binary)  # as features.edge_map does with the images' edges
 
 
 def oracle(seq_path: str, fps: float, runs: int, silhouettes: str, edges: str, algo: str, terms: str,
@@ -133,7 +131,7 @@ def oracle(seq_path: str, fps: float, runs: int, silhouettes: str, edges: str, a
             changes["silhouettes"] = np.stack([render_silhouette(setup.model, pose, cam)
                                                for cam in frame.cameras]).astype(frame.silhouettes.dtype)
         if edges != "real":
-            changes["edges"] = np.stack([_model_edge_map(setup.model, pose, cam, frame.edges.shape[1:], edges, 2.0)
+            changes["edges"] = np.stack([_model_edge_map(setup.model, pose, cam, frame.edges.shape[1:], edges)
                                          for cam in frame.cameras]).astype(np.float32)
         return dataclasses.replace(frame, **changes) if changes else frame
 

@@ -13,6 +13,8 @@ Public API
 ``edge_map(image, silhouette, *, threshold=40, dilate_px=7, sigma_px=2.0) -> (H, W) float32``
     Thesis sec. 5.2.1: Sobel -> threshold -> mask with the dilated silhouette -> Gaussian blur ->
     rescale to ``[0, 1]`` (divided by its maximum; all zeros when there is no edge).
+``blur_edges(binary (H, W), sigma_px=2.0) -> (H, W) float32``
+    The last two steps of ``edge_map`` for any binary edge image (e.g. a model's own outlines).
 ``FrameFeatures(silhouettes (C, H, W) uint8, edges (C, H, W) float32, cameras: list[Camera])``
     The observation of one frame in ``C`` views; :meth:`FrameFeatures.downsample` gives a pyramid
     level with the cameras rescaled by :meth:`swarmpose.camera.Camera.scaled`.
@@ -44,7 +46,7 @@ import numpy as np
 from swarmpose.camera import Camera
 from swarmpose.errors import ConfigError, ShapeError
 
-__all__ = ["silhouette", "edge_map", "FrameFeatures", "compute_features", "FEATURE_OPTIONS",
+__all__ = ["silhouette", "edge_map", "blur_edges", "FrameFeatures", "compute_features", "FEATURE_OPTIONS",
            "parse_feature_options"]
 
 #: Keys of :func:`parse_feature_options`: ``(function, keyword)`` of :func:`silhouette` / :func:`edge_map`.
@@ -217,10 +219,19 @@ def edge_map(
     if k > 0:
         mask = cv2.dilate(sil, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k))) if k > 1 else sil
         edges = cv2.bitwise_and(edges, mask)
-    kb = 2 * int(np.ceil(3.0 * sigma_px)) + 1  # +-3 sigma (OpenCV's float default, 4 sigma, is slower)
     if out is not None and (out.shape != img.shape or out.dtype != np.float32 or not out.flags.c_contiguous):
         raise ShapeError(f"out must be a C-contiguous float32 array of shape {img.shape}")
-    e = cv2.GaussianBlur(edges.astype(np.float32), (kb, kb), float(sigma_px), dst=out)
+    return blur_edges(edges, sigma_px, out=out)
+
+
+def blur_edges(edges: np.ndarray, sigma_px: float = 2.0, *, out: np.ndarray | None = None) -> np.ndarray:
+    """The last step of :func:`edge_map`: Gaussian blur (sigma ``sigma_px``, kernel +-3 sigma) of a binary
+    edge image, divided by its maximum (``[0, 1]``; all zeros stay zeros).
+
+    ``out`` (float32, the image's shape, C-contiguous) receives the result when given.
+    """
+    kb = 2 * int(np.ceil(3.0 * sigma_px)) + 1  # +-3 sigma (OpenCV's float default, 4 sigma, is slower)
+    e = cv2.GaussianBlur(np.asarray(edges).astype(np.float32), (kb, kb), float(sigma_px), dst=out)
     peak = float(e.max()) if e.size else 0.0
     if peak > 0.0:
         e *= np.float32(1.0 / peak)

@@ -268,9 +268,6 @@ class NumbaBackend(_BackendBase):
         if threads not in ("pool", "prange", "serial"):
             raise ConfigError(f"threads must be 'pool', 'prange' or 'serial', got {threads!r}")
         self.threads = threads
-        #: chunks per thread in "pool" mode: 1 measured fastest (the per-chunk set-up costs more than
-        #: finer balancing gains); a chunk not yet claimed by a late thread is taken by another
-        self.chunks_per_thread = 1
         self._ctab, self._stab = rim_tables(self.n_rim)
 
     @classmethod
@@ -302,8 +299,9 @@ class NumbaBackend(_BackendBase):
             eval_share(np.arange(N), *args, counts, sums)
         else:
             # the batch in nth contiguous chunks, claimed by the calling thread and nth - 1 pool threads:
-            # a pool thread that wakes up late (or not at all, preempted) leaves its chunk to the others
-            chunk = max(1, -(-N // (self.chunks_per_thread * nth)))
+            # a pool thread that wakes up late (or not at all, preempted) leaves its chunk to the others.
+            # One chunk per thread measured fastest: the per-chunk set-up costs more than finer balancing gains.
+            chunk = max(1, -(-N // nth))
             chunks = iter([np.arange(a, min(a + chunk, N)) for a in range(0, N, chunk)])
             lock = threading.Lock()
 
