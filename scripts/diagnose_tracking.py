@@ -16,8 +16,9 @@ Two measurements (issue 6 investigation; numbers quoted in its note):
     observed silhouette by the tracker's own cone model rendered at the IK pose (the best model fit to the
     truth); ``--edges model`` replaces the edge map by the model's own edges at the IK pose (every visible
     cone side line and the torso's top, as the edge fitness samples them, blurred like ``edge_map``);
-    ``--edges outline`` by the outline of the model's silhouette only (no inner edges); ``real`` keeps the
-    image-derived observation. With both ``model`` the images show exactly what the model expects, so the
+    ``--edges outline`` by the outline of the model's silhouette only (no inner edges); ``--edges
+    observed-outline`` by the outline of the *observed* silhouette (the observation body's shape, no inner
+    edges, no shading or texture edges); ``real`` keeps the image-derived observation. With both ``model`` the images show exactly what the model expects, so the
     remaining error is the search's own (1000 evaluations, sigma, ambiguities of silhouettes and edges).
 
 ``drift RESULTS_DIR`` -- for a finished ``swarmpose track`` results folder: mean |error| of every
@@ -28,7 +29,8 @@ Two measurements (issue 6 investigation; numbers quoted in its note):
 Run:  .venv/bin/python scripts/diagnose_tracking.py floor cache/sequences/<walk> [--rounds 20] [--json]
           [--terms silhouette|edge] [--features edge_sigma_px=4]
       .venv/bin/python scripts/diagnose_tracking.py oracle cache/sequences/<walk> --fps 60 --runs 5
-          [--silhouettes model|real] [--edges model|outline|real] [--terms silhouette] [--algo sppso]
+          [--silhouettes model|real] [--edges model|outline|observed-outline|real] [--terms silhouette]
+          [--fitness-options edge_top=false] [--algo sppso]
       .venv/bin/python scripts/diagnose_tracking.py drift results/<run folder>
 """
 
@@ -113,15 +115,36 @@ def _model_edge_map(model, pose: np.ndarray, camera, shape: tuple[int, int], mod
     return blur_edges(binary)  # as features.edge_map does with the images' edges
 
 
+def _body_frame_bias(gt: np.ndarray, est: np.ndarray, joint: str) -> list[float]:
+    """Mean signed error of one joint (mm) along the subject's forward, left and up directions.
+
+    Left is the horizontal right-to-left hip direction of the truth, up is world +z, forward = left x up.
+    A systematic offset (the same sign in every run) points at a model/image mismatch, not at the search.
+    """
+    from swarmpose.joints import JOINT_INDEX as J
+
+    left = gt[:, J["l_hip"]] - gt[:, J["r_hip"]]
+    left[:, 2] = 0.0
+    left /= np.linalg.norm(left, axis=1, keepdims=True)
+    forward = np.cross(left, [0.0, 0.0, 1.0])
+    e = est[:, J[joint]] - gt[:, J[joint]]
+    return [round(float(np.nanmean(np.sum(e * d, axis=1))), 1) for d in (forward, left)] + \
+        [round(float(np.nanmean(e[:, 2])), 1)]
+
+
 def oracle(seq_path: str, fps: float, runs: int, silhouettes: str, edges: str, algo: str, terms: str,
-           seed: int) -> dict:
+           seed: int, fitness_options: str = "") -> dict:
     import dataclasses
+
+    import cv2
+
+    from swarmpose.features import blur_edges
 
     from swarmpose.render import render_silhouette
     from swarmpose.track.tracker import TrackConfig, prepare_track, run_tracker
 
-    config = TrackConfig(algo=algo, fps=fps, seed=seed, fitness="silhouette_edge",
-                         fitness_options=f"terms={terms}" if terms else "")
+    options = ",".join(o for o in (f"terms={terms}" if terms else "", fitness_options) if o)
+    config = TrackConfig(algo=algo, fps=fps, seed=seed, fitness="silhouette_edge", fitness_options=options)
     setup = prepare_track(seq_path, config, None)
     ik = {int(k): setup.ik_params[i] for i, k in enumerate(setup.frame_indices)}
 
@@ -130,19 +153,26 @@ def oracle(seq_path: str, fps: float, runs: int, silhouettes: str, edges: str, a
         if silhouettes == "model":
             changes["silhouettes"] = np.stack([render_silhouette(setup.model, pose, cam)
                                                for cam in frame.cameras]).astype(frame.silhouettes.dtype)
-        if edges != "real":
+        if edges == "observed-outline":
+            outline = [cv2.morphologyEx(np.asarray(s, np.uint8), cv2.MORPH_GRADIENT, np.ones((2, 2), np.uint8))
+                       for s in frame.silhouettes]  # the image-derived silhouettes, before any replacement
+            changes["edges"] = np.stack([blur_edges(b) for b in outline]).astype(np.float32)
+        elif edges != "real":
             changes["edges"] = np.stack([_model_edge_map(setup.model, pose, cam, frame.edges.shape[1:], edges)
                                          for cam in frame.cameras]).astype(np.float32)
         return dataclasses.replace(frame, **changes) if changes else frame
 
-    per_run = [run_tracker(setup, r, None, observe=observe).errors for r in range(runs)]
+    results = [run_tracker(setup, r, None, observe=observe) for r in range(runs)]
+    per_run = [r.errors for r in results]
     return {"sequence": seq_path, "algo": algo, "fps": fps, "runs": runs, "silhouettes": silhouettes,
-            "edges": edges, "terms": terms or "silhouette+edge", "seed": seed,
+            "edges": edges, "terms": terms or "silhouette+edge", "fitness_options": fitness_options, "seed": seed,
             "d_mean_mm": float(np.mean([e["d_mean"] for e in per_run])),
             "d_max_mm": float(np.mean([e["d_max"] for e in per_run])),
             "mmta": float(np.mean([e["mmta"] for e in per_run])),
             "ik_floor_mm": setup.ik_floor_mm,
-            "d_mean_per_run_mm": [round(float(e["d_mean"]), 2) for e in per_run]}
+            "d_mean_per_run_mm": [round(float(e["d_mean"]), 2) for e in per_run],
+            "pelvis_bias_fwd_left_up_mm": [_body_frame_bias(setup.gt_joints, r.joints, "pelvis") for r in results],
+            "thorax_bias_fwd_left_up_mm": [_body_frame_bias(setup.gt_joints, r.joints, "thorax") for r in results]}
 
 
 def drift(results: Path) -> dict:
@@ -184,9 +214,10 @@ def main() -> None:
     o.add_argument("--fps", type=float, default=60.0)
     o.add_argument("--runs", type=int, default=5)
     o.add_argument("--silhouettes", choices=("model", "real"), default="model")
-    o.add_argument("--edges", choices=("model", "outline", "real"), default="model")
+    o.add_argument("--edges", choices=("model", "outline", "observed-outline", "real"), default="model")
     o.add_argument("--algo", default="sppso")
     o.add_argument("--terms", default="", help="fitness terms, e.g. 'silhouette' (default: f_s + f_e)")
+    o.add_argument("--fitness-options", default="", help="more fitness options, e.g. 'edge_top=false'")
     o.add_argument("--seed", type=int, default=0)
     args = ap.parse_args()
     if args.cmd == "drift":
@@ -194,7 +225,7 @@ def main() -> None:
         return
     if args.cmd == "oracle":
         print(json.dumps(oracle(args.sequence, args.fps, args.runs, args.silhouettes, args.edges, args.algo,
-                                args.terms, args.seed), indent=1))
+                                args.terms, args.seed, args.fitness_options), indent=1))
         return
     options = {"terms": args.terms} if args.terms else {}
     rows = floor(args.sequence, [int(s) for s in args.frames.split(",")], args.rounds, options, args.seed,
