@@ -76,3 +76,19 @@ def test_subject_from_joints_alone_fits_almost_as_well(walk):
     assert -subj.offsets["l_thigh"][2] == pytest.approx(-model.subject.offsets["l_thigh"][2], abs=1e-6)
     res2 = fit_ik(m2, clip.joints[::3])
     assert res2.floor_mean_mm < 15.0
+
+
+@pytest.mark.parametrize("spec_name", ["balan31", "full45"])
+def test_thesis_variant_keeps_the_torso_top_at_the_shoulders(walk_clip_path, spec_name):
+    """The subject's torso already ends at the top of the shoulders (the alignment thesis sec. 5.1.2's
+    x1.05 was for); the variant must not lengthen it again (an 18 mm too high top edge sank the body)."""
+    clip = load_clip(walk_clip_path, fps=30)
+    spec = load_spec(spec_name)
+    model = BodyModel(spec, subject_from_clip(spec, clip), "thesis")
+    k = model.cone_arrays.names.index("torso")
+    top = np.asarray(model.subject.offsets["pelvis_to_torso_top"])
+    np.testing.assert_allclose(model.cone_arrays.end[k], top, atol=1e-9)
+    # ... and that top is the shoulder joints' height plus the upper arm's radius
+    o = model.subject.offsets
+    shoulder_z = 0.5 * (o["l_thorax_to_shoulder"][2] + o["r_thorax_to_shoulder"][2]) + o["spine_to_thorax"][2]
+    assert top[2] == pytest.approx(shoulder_z + model.subject.cones["l_upper_arm"][0], abs=1e-6)
