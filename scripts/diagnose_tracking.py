@@ -18,8 +18,8 @@ Two measurements (issue 6 investigation; numbers quoted in its note):
     cone side line and the torso's top, as the edge fitness samples them, blurred like ``edge_map``);
     ``--edges outline`` by the outline of the model's silhouette only (no inner edges); ``--edges
     observed-outline`` by the outline of the *observed* silhouette (the observation body's shape, no inner
-    edges, no shading or texture edges); ``real`` keeps the image-derived observation. With both ``model`` the images show exactly what the model expects, so the
-    remaining error is the search's own (1000 evaluations, sigma, ambiguities of silhouettes and edges).
+    edges, no shading or texture edges); ``real`` keeps the image-derived observation. With both ``model``
+    the images show exactly what the model expects, so the remaining error is the search's own (1000 evaluations, sigma, ambiguities of silhouettes and edges).
 
 ``drift RESULTS_DIR`` -- for a finished ``swarmpose track`` results folder: mean |error| of every
     parameter against the IK fit (degrees / mm), largest first, and the correlation of the root heading
@@ -95,24 +95,29 @@ def floor(seq_path: str, frames: list[int], rounds: int, options: dict, seed: in
 
 def _model_edge_map(model, pose: np.ndarray, camera, shape: tuple[int, int], mode: str) -> np.ndarray:
     """The edge map the model itself would produce at ``pose`` (``mode`` "model" or "outline")."""
-    import cv2
-
     from swarmpose.features import blur_edges
     from swarmpose.render import render_silhouette
     from swarmpose.render.reference import edge_samples_reference, reference_geometry
 
     if mode == "outline":
-        mask = render_silhouette(model, pose, camera)
-        binary = cv2.morphologyEx(mask, cv2.MORPH_GRADIENT, np.ones((2, 2), np.uint8))
-    else:
-        geom = reference_geometry(model, pose[None], [camera])
-        n_cones = geom.cones.n_vertices.shape[2]
-        xy, _, _, visible = edge_samples_reference(geom, 0, 0, np.ones(n_cones, bool), 0, 0.5)
-        q = np.round(xy[visible]).astype(int)
-        inside = (q[:, 0] >= 0) & (q[:, 0] < shape[1]) & (q[:, 1] >= 0) & (q[:, 1] < shape[0])
-        binary = np.zeros(shape, np.uint8)
-        binary[q[inside, 1], q[inside, 0]] = 1
+        return _outline_edge_map(render_silhouette(model, pose, camera))
+    geom = reference_geometry(model, pose[None], [camera])
+    n_cones = geom.cones.n_vertices.shape[2]
+    xy, _, _, visible = edge_samples_reference(geom, 0, 0, np.ones(n_cones, bool), 0, 0.5)
+    q = np.round(xy[visible]).astype(int)
+    inside = (q[:, 0] >= 0) & (q[:, 0] < shape[1]) & (q[:, 1] >= 0) & (q[:, 1] < shape[0])
+    binary = np.zeros(shape, np.uint8)
+    binary[q[inside, 1], q[inside, 0]] = 1
     return blur_edges(binary)  # as features.edge_map does with the images' edges
+
+
+def _outline_edge_map(mask: np.ndarray) -> np.ndarray:
+    """The blurred outline of a binary silhouette, as ``features.edge_map`` blurs the images' edges."""
+    import cv2
+
+    from swarmpose.features import blur_edges
+
+    return blur_edges(cv2.morphologyEx(np.asarray(mask, np.uint8), cv2.MORPH_GRADIENT, np.ones((2, 2), np.uint8)))
 
 
 def _body_frame_bias(gt: np.ndarray, est: np.ndarray, joint: str) -> list[float]:
@@ -136,10 +141,6 @@ def oracle(seq_path: str, fps: float, runs: int, silhouettes: str, edges: str, a
            seed: int, fitness_options: str = "") -> dict:
     import dataclasses
 
-    import cv2
-
-    from swarmpose.features import blur_edges
-
     from swarmpose.render import render_silhouette
     from swarmpose.track.tracker import TrackConfig, prepare_track, run_tracker
 
@@ -154,9 +155,8 @@ def oracle(seq_path: str, fps: float, runs: int, silhouettes: str, edges: str, a
             changes["silhouettes"] = np.stack([render_silhouette(setup.model, pose, cam)
                                                for cam in frame.cameras]).astype(frame.silhouettes.dtype)
         if edges == "observed-outline":
-            outline = [cv2.morphologyEx(np.asarray(s, np.uint8), cv2.MORPH_GRADIENT, np.ones((2, 2), np.uint8))
-                       for s in frame.silhouettes]  # the image-derived silhouettes, before any replacement
-            changes["edges"] = np.stack([blur_edges(b) for b in outline]).astype(np.float32)
+            # the image-derived silhouettes, before any replacement
+            changes["edges"] = np.stack([_outline_edge_map(s) for s in frame.silhouettes]).astype(np.float32)
         elif edges != "real":
             changes["edges"] = np.stack([_model_edge_map(setup.model, pose, cam, frame.edges.shape[1:], edges)
                                          for cam in frame.cameras]).astype(np.float32)
