@@ -130,7 +130,7 @@ def test_resume_checks_the_configuration(short_sequence, tmp_path):
     cfg_file = tmp_path / "config.json"
     record = json.loads(cfg_file.read_text())
     # a folder written before a setting existed resumes (the setting had its default)
-    for key in ("feature_options", "fitness_options"):
+    for key in ("feature_options", "fitness_options", "motion"):
         del record[key]
     cfg_file.write_text(json.dumps(record))
     again = track_runs(short_sequence, cfg, 1, tmp_path, resume=True, workers=1, progress=False)
@@ -185,3 +185,22 @@ def test_track_variant_option(short_sequence, tmp_path):
     res = runner.invoke(app, ["track", str(short_sequence), "--algo", "sppso", "--variant", "apf=100x3",
                               "--fps", "20", "--workers", "1", "--out", str(tmp_path / "bad"), "--json"])
     assert res.exit_code == 2 and "annealed particle filter" in res.stderr and res.stdout == ""
+
+
+@pytest.mark.parametrize("algo", ["sppso", "apf"])
+def test_constant_velocity_moves_the_search_from_the_third_frame(short_sequence, tmp_path, algo):
+    """The first two frames have no velocity yet (same draws, same estimates as zero velocity); from the
+    third on the search is centred elsewhere. A killed constant-velocity run resumes exactly."""
+    from swarmpose.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="motion model"):
+        TrackConfig(motion="constant-velocity:3")
+    zero = run_tracker(prepare_track(short_sequence, TrackConfig(algo=algo, fps=20.0, seed=4), None), 0, None)
+    cfg = TrackConfig(algo=algo, fps=20.0, seed=4, motion="constant-velocity")
+    full = run_tracker(prepare_track(short_sequence, cfg, None), 0, None)
+    assert np.array_equal(full.params[:2], zero.params[:2])
+    assert not np.allclose(full.params[2:], zero.params[2:])
+    setup = prepare_track(short_sequence, cfg, tmp_path)
+    run_tracker(setup, 0, tmp_path, stop_after=3)
+    resumed = run_tracker(prepare_track(short_sequence, cfg, tmp_path), 0, tmp_path, resume=True)
+    assert np.array_equal(resumed.params, full.params)

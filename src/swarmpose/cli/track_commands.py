@@ -37,6 +37,11 @@ def track(
         "", help="Image feature settings, key=value[,...]: edge_threshold (grey-level step, default 40), "
                  "edge_dilate_px, edge_sigma_px, silhouette_threshold (default 25), silhouette_blur_px, "
                  "silhouette_open_px, silhouette_close_px."),
+    motion: str = typer.Option(
+        "zero-velocity", help="Motion model that centres each frame's search: zero-velocity (the thesis's, "
+                              "sec. 5.3.2) or constant-velocity[:D][@GROUP+...] (moves on by D x the last "
+                              "step, D = 1 by default, only the named parameter groups if given, e.g. "
+                              "@root_position; an extension, not in the papers, and worse on the walk)."),
     workers: int = typer.Option(None, help="Parallel worker processes (default: one per core, at most --runs)."),
     scheduler: str = typer.Option(None, help="Run on a Dask cluster at this address (dask.distributed)."),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object with the summary."),
@@ -52,7 +57,7 @@ def track(
 
     cfg = TrackConfig(algo=algo, fps=fps, model=model, fitness=fitness, backend=backend,
                       downsample=downsample, seed=seed, fitness_options=fitness_options,
-                      feature_options=features, optim_variant=variant)
+                      feature_options=features, optim_variant=variant, motion=motion)
     seq = resolve_sequence(source, progress=not json_out)
     if out is None:
         if isinstance(seq, str):  # a dataset spec such as humaneva:/data/HumanEva/S1/Walking_1

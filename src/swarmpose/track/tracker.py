@@ -2,8 +2,9 @@
 
 For every processed frame (the sequence subsampled to the requested rate) the tracker
 
-1. predicts from the previous estimate with the zero-velocity motion model (thesis sec. 5.3.2: the
-   swarm starts at N(x̂_{t-1}, Σ) with σ scaled by 60/fps; the optimiser registry does the scaling),
+1. predicts from the previous estimates with the configured motion model (``swarmpose.track.motion``;
+   default the thesis's zero velocity, sec. 5.3.2: the swarm starts at N(x̂_{t-1}, Σ) with σ scaled
+   by 60/fps; the optimiser registry does the scaling),
 2. binds the frame's observation to the fitness (image features or 2D markers),
 3. runs the optimiser's stages/layers with the body model's hard priors as constraint, switching the
    fitness options per stage (``opt.fitness_options``),
@@ -34,6 +35,7 @@ from swarmpose.body.priors import HardPriors
 from swarmpose.body.spec import Subject, load_spec
 from swarmpose.errors import ConfigError, DataError
 from swarmpose.metrics import track_errors
+from swarmpose.track.motion import parse_motion
 
 __all__ = ["TrackConfig", "RunResult", "prepare_track", "run_tracker", "TrackSetup", "versions"]
 
@@ -66,6 +68,7 @@ class TrackConfig:
     optim_variant: str = ""  # see swarmpose.experiments.suites.apply_variant
     fitness_options: str = ""  # "key=value,..." merged over each stage's options
     feature_options: str = ""  # "edge_threshold=8,..." (swarmpose.features.parse_feature_options)
+    motion: str = "zero-velocity"  # or "constant-velocity[:D][@GROUP+...]" (swarmpose.track.motion)
 
     def __post_init__(self) -> None:
         if self.fps <= 0:
@@ -80,6 +83,7 @@ class TrackConfig:
 
         parse_fitness_options(self.fitness_options)  # fail early, before any run starts
         parse_feature_options(self.feature_options)
+        parse_motion(self.motion)
 
     def optimizer(self, model: BodyModel):
         """The named optimiser configuration for ``model`` at this frame rate, variant applied."""
@@ -168,6 +172,7 @@ def prepare_track(sequence_path: str | Path, config: TrackConfig, out_dir: Path 
         if subject is None:
             subject = _subject_for(seq, spec)
         model = BodyModel(spec, subject, config.variant)
+        parse_motion(config.motion).mask(model)  # unknown parameter groups fail here, before any run
         frames = np.asarray(seq.subsample(config.fps), dtype=np.int64)
         gt = np.asarray(seq.gt_joints)[frames]
         times = np.asarray(seq.frame_times)[frames]
@@ -269,6 +274,8 @@ def run_tracker(
     cfg = setup.config
     model = setup.model
     algo = cfg.optimizer(model)
+    motion = parse_motion(cfg.motion)
+    motion_mask = motion.mask(model)
     extra_options = parse_fitness_options(cfg.fitness_options)
     feature_options = parse_feature_options(cfg.feature_options)
     constraint = HardPriors(model).valid
@@ -309,7 +316,11 @@ def run_tracker(
             k = int(setup.frame_indices[i])
             observation = _frame_observation(seq, k, cfg.fitness_kind, cfg.downsample, backgrounds, feature_options)
             fitness.bind(observation if observe is None else observe(k, observation))
-            opt = algo.start(x_prev, rng, constraint=constraint, carry=carry)
+            x_pred = motion.predict(params[:i] if i >= 2 else x_prev[None], constraint, motion_mask)
+            if carry is not None:
+                carry = optim.ParticleSet(motion.move_particles(carry.particles, x_pred - x_prev, constraint),
+                                          carry.weights)
+            opt = algo.start(x_pred, rng, constraint=constraint, carry=carry)
             while not opt.done:
                 poses = opt.ask()
                 options = {**opt.fitness_options, **extra_options} if extra_options else opt.fitness_options

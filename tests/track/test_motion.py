@@ -1,0 +1,80 @@
+"""Motion models (swarmpose.track.motion): zero velocity (thesis sec. 5.3.2) and constant velocity."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+
+from swarmpose.errors import ConfigError
+from swarmpose.track.motion import MotionModel, parse_motion
+
+finite = st.floats(-1e3, 1e3, allow_nan=False)
+
+
+@given(arrays(np.float64, (3, 5), elements=finite))
+def test_zero_velocity_predicts_the_last_estimate(history):
+    assert np.array_equal(parse_motion("zero-velocity").predict(history), history[-1])
+
+
+@given(arrays(np.float64, 5, elements=finite), arrays(np.float64, 5, elements=finite),
+       st.floats(0.0, 1.0))
+def test_constant_velocity_carries_the_last_step_on(start, step, d):
+    """On a straight line x_k = start + k step the prediction is x_2 + d step (d = 1: the next point)."""
+    history = np.stack([start, start + step, start + 2 * step])
+    predicted = parse_motion(f"constant-velocity:{d}").predict(history)
+    np.testing.assert_allclose(predicted, start + (2 + d) * step, atol=1e-9)
+    np.testing.assert_allclose(parse_motion("constant-velocity").predict(history), start + 3 * step, atol=1e-9)
+
+
+def test_constant_velocity_needs_two_estimates_and_respects_the_priors():
+    cv = parse_motion("constant-velocity")
+    one = np.array([[1.0, 2.0]])
+    assert np.array_equal(cv.predict(one), one[0])
+    history = np.array([[0.0, 0.0], [1.0, 1.0]])
+    assert np.array_equal(cv.predict(history), [2.0, 2.0])
+    # a prediction outside the hard priors is not used: zero velocity for that frame
+    below_two = lambda poses: np.all(poses < 1.5, axis=1)  # noqa: E731
+    assert np.array_equal(cv.predict(history, below_two), [1.0, 1.0])
+
+
+def test_carried_particles_move_by_the_step_where_they_stay_valid():
+    cv = MotionModel("constant-velocity", 1.0)
+    particles = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]])
+    valid = lambda poses: poses[:, 0] < 2.5  # noqa: E731
+    moved = cv.move_particles(particles, np.array([1.0, 0.0]), valid)
+    assert moved.tolist() == [[1.0, 0.0], [2.0, 0.0], [2.0, 0.0]]  # the last would leave the valid region
+    assert cv.move_particles(particles, np.zeros(2)) is particles
+
+
+@pytest.mark.parametrize("text, match", [("constant-velocity:2", r"\[0, 1\]"), ("constant-velocity:x", "number"),
+                                         ("linear", "known: zero-velocity"), ("zero-velocity:1", "no argument")])
+def test_bad_motion_models_are_named(text, match):
+    with pytest.raises(ConfigError, match=match):
+        parse_motion(text)
+
+
+def test_names_round_trip():
+    for text in ("zero-velocity", "constant-velocity", "constant-velocity:0.5"):
+        assert str(parse_motion(text)) == text
+
+
+def test_groups_limit_the_step_and_are_checked_against_the_model():
+    from swarmpose.body.model import BodyModel
+    from swarmpose.body.spec import load_spec
+
+    model = BodyModel(load_spec("balan31"))
+    cv = parse_motion("constant-velocity:0.5@root_position+left_leg")
+    assert cv.groups == ("root_position", "left_leg") and str(cv) == "constant-velocity:0.5@root_position+left_leg"
+    mask = cv.mask(model)
+    assert mask.sum() == len(model.group("root_position")) + len(model.group("left_leg"))
+    history = np.stack([np.zeros(model.n_params), np.ones(model.n_params)])
+    predicted = cv.predict(history, mask=mask)
+    np.testing.assert_array_equal(predicted, np.where(mask, 1.5, 1.0))
+    assert parse_motion("constant-velocity").mask(model) is None
+    with pytest.raises(ConfigError, match="no parameter group 'arms'"):
+        parse_motion("constant-velocity@arms").mask(model)
+    with pytest.raises(ConfigError, match="after '@'"):
+        parse_motion("constant-velocity@")
