@@ -49,16 +49,23 @@ def test_carried_particles_move_by_the_step_where_they_stay_valid():
     assert cv.move_particles(particles, np.zeros(2)) is particles
 
 
-@pytest.mark.parametrize("text, match", [("constant-velocity:2", r"\[0, 1\]"), ("constant-velocity:x", "number"),
-                                         ("linear", "known: zero-velocity"), ("zero-velocity:1", "no argument")])
+@pytest.mark.parametrize("text, match", [
+    ("constant-velocity:2", r"\[0, 1\]"), ("constant-velocity:x", "number"), ("constant-velocity:", "number"),
+    ("linear", "known: zero-velocity"), ("zero-velocity:1", "no ':D'"), ("zero-velocity@root", "no ':D' and no '@"),
+])
 def test_bad_motion_models_are_named(text, match):
     with pytest.raises(ConfigError, match=match):
         parse_motion(text)
+    with pytest.raises(ConfigError, match="unknown motion model 'linear'"):
+        MotionModel("linear", 1.0)
 
 
-def test_names_round_trip():
-    for text in ("zero-velocity", "constant-velocity", "constant-velocity:0.5"):
+def test_names_round_trip_to_a_canonical_text():
+    for text in ("zero-velocity", "constant-velocity", "constant-velocity:0.5", "constant-velocity:0.123456789",
+                 "constant-velocity@root_position+spine"):
         assert str(parse_motion(text)) == text
+        assert parse_motion(str(parse_motion(text))) == parse_motion(text)
+    assert str(parse_motion(" constant-velocity:1 ")) == "constant-velocity"
 
 
 def test_groups_limit_the_step_and_are_checked_against_the_model():

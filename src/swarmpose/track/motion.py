@@ -17,28 +17,30 @@ eq. 9) moves by the same step, particle by particle where the moved particle sta
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from swarmpose.errors import ConfigError
+from swarmpose.optim.base import Constraint
 
 __all__ = ["MotionModel", "parse_motion", "MOTION_MODELS"]
 
 MOTION_MODELS = ("zero-velocity", "constant-velocity")
 
-Constraint = Callable[[np.ndarray], np.ndarray]
-
 
 @dataclass(frozen=True)
 class MotionModel:
-    """A named motion model; ``damping`` is ``d`` of the constant-velocity model (0 for zero velocity)."""
+    """A named motion model; ``fraction`` is ``d`` of the constant-velocity model (0 for zero velocity)."""
 
     name: str = "zero-velocity"
-    damping: float = 0.0
+    fraction: float = 0.0
     groups: tuple[str, ...] = ()  # parameter groups that move on; () = all
+
+    def __post_init__(self) -> None:
+        if self.name not in MOTION_MODELS:
+            raise ConfigError(f"unknown motion model {self.name!r}; known: {', '.join(MOTION_MODELS)}")
 
     def mask(self, model: Any) -> np.ndarray | None:
         """``(D,)`` bool of the parameters that move on for ``model`` (None: all of them)."""
@@ -60,9 +62,9 @@ class MotionModel:
         if history.ndim != 2 or len(history) == 0:
             raise ValueError(f"history must be (k >= 1, D), got shape {history.shape}")
         last = history[-1]
-        if self.name == "zero-velocity" or self.damping == 0.0 or len(history) < 2:
+        if self.name == "zero-velocity" or self.fraction == 0.0 or len(history) < 2:
             return last.copy()
-        step = self.damping * (last - history[-2])
+        step = self.fraction * (last - history[-2])
         if mask is not None:
             step = np.where(mask, step, 0.0)
         predicted = last + step
@@ -70,9 +72,10 @@ class MotionModel:
             return last.copy()
         return predicted
 
-    def move_particles(self, particles: np.ndarray, step: np.ndarray,
-                       constraint: Constraint | None = None) -> np.ndarray:
-        """Move a carried particle set ``(N, D)`` by ``step``; particles the step would make invalid stay."""
+    @staticmethod
+    def move_particles(particles: np.ndarray, step: np.ndarray, constraint: Constraint | None = None) -> np.ndarray:
+        """Move a carried particle set ``(N, D)`` by ``step``; particles the step would make invalid stay
+        where they were (the set then splits between old and new places; its weights are kept)."""
         if not np.any(step):
             return particles
         moved = particles + step[None, :]
@@ -82,9 +85,10 @@ class MotionModel:
         return moved
 
     def __str__(self) -> str:
+        """The canonical text ``parse_motion`` reads back to an equal model."""
         text = self.name
-        if self.name == "constant-velocity" and self.damping != 1.0:
-            text += f":{self.damping:g}"
+        if self.name == "constant-velocity" and self.fraction != 1.0:
+            text += f":{self.fraction!r}"
         return text + ("@" + "+".join(self.groups) if self.groups else "")
 
 
@@ -98,18 +102,18 @@ def parse_motion(text: str) -> MotionModel:
     if at and not groups:
         raise ConfigError(f"motion model {text!r}: name at least one parameter group after '@' "
                           "(e.g. constant-velocity@root_position)")
-    name, _, arg = head.partition(":")
+    name, sep, arg = head.strip().partition(":")
     if name not in MOTION_MODELS:
         raise ConfigError(f"unknown motion model {text!r}; known: zero-velocity, constant-velocity[:D] "
                           "(D, the fraction of the last step carried on, in [0, 1])")
     if name == "zero-velocity":
-        if arg or groups:
-            raise ConfigError(f"motion model {text!r}: zero-velocity takes no argument")
+        if sep or at:
+            raise ConfigError(f"motion model {text!r}: zero-velocity takes no ':D' and no '@GROUPS'")
         return MotionModel()
     try:
-        damping = float(arg) if arg else 1.0
+        fraction = float(arg) if sep else 1.0
     except ValueError:
         raise ConfigError(f"motion model {text!r}: expected constant-velocity:D with D a number in [0, 1]") from None
-    if not 0.0 <= damping <= 1.0:
-        raise ConfigError(f"motion model {text!r}: D must lie in [0, 1], got {damping:g}")
-    return MotionModel(name, damping, groups)
+    if not 0.0 <= fraction <= 1.0:
+        raise ConfigError(f"motion model {text!r}: D must lie in [0, 1], got {fraction!r}")
+    return MotionModel(name, fraction, groups)

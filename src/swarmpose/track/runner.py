@@ -161,6 +161,7 @@ def track_runs(sequence: str | Path, config: TrackConfig, runs: int, out_dir: Pa
                      "frames_per_s": r["frames_per_s"]} for r in sorted(per_run, key=lambda r: r["run"])],
         "sequence": str(sequence),
         "fitness": config.fitness_kind,
+        "motion": config.motion,
         "seed": config.seed,
         "out_dir": str(out_dir),
     }

@@ -83,7 +83,8 @@ class TrackConfig:
 
         parse_fitness_options(self.fitness_options)  # fail early, before any run starts
         parse_feature_options(self.feature_options)
-        parse_motion(self.motion)
+        # canonical text, so that "constant-velocity" and "constant-velocity:1" resume each other
+        object.__setattr__(self, "motion", str(parse_motion(self.motion)))
 
     def optimizer(self, model: BodyModel):
         """The named optimiser configuration for ``model`` at this frame rate, variant applied."""
@@ -317,9 +318,9 @@ def run_tracker(
             observation = _frame_observation(seq, k, cfg.fitness_kind, cfg.downsample, backgrounds, feature_options)
             fitness.bind(observation if observe is None else observe(k, observation))
             x_pred = motion.predict(params[:i] if i >= 2 else x_prev[None], constraint, motion_mask)
-            if carry is not None:
-                carry = optim.ParticleSet(motion.move_particles(carry.particles, x_pred - x_prev, constraint),
-                                          carry.weights)
+            step = x_pred - x_prev
+            if carry is not None and np.any(step):
+                carry = optim.ParticleSet(motion.move_particles(carry.particles, step, constraint), carry.weights)
             opt = algo.start(x_pred, rng, constraint=constraint, carry=carry)
             while not opt.done:
                 poses = opt.ask()
