@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-__all__ = ["SwarmposeError", "ShapeError", "ConfigError", "DataError", "FormatError"]
+__all__ = ["SwarmposeError", "ShapeError", "ConfigError", "DataError", "FormatError", "option_items"]
 
 
 class SwarmposeError(Exception):
@@ -37,3 +37,18 @@ class FormatError(SwarmposeError, ValueError):
         self.path = path
         self.line = line
         self.field = field
+
+
+def option_items(text: str, what: str, form: str = "key=value") -> list[tuple[str, str]]:
+    """Split a user's ``"key=value,key=value"`` text into stripped ``(key, value)`` pairs.
+
+    Empty items are skipped; an item without ``=`` raises :class:`ConfigError` ``"{what} {item!r} is
+    not {form}"``. Checking the keys and values is the caller's.
+    """
+    items = []
+    for item in filter(None, (t.strip() for t in str(text).split(","))):
+        key, sep, value = (t.strip() for t in item.partition("="))
+        if not sep:
+            raise ConfigError(f"{what} {item!r} is not {form}")
+        items.append((key, value))
+    return items

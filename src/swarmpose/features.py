@@ -44,7 +44,7 @@ import cv2
 import numpy as np
 
 from swarmpose.camera import Camera
-from swarmpose.errors import ConfigError, ShapeError
+from swarmpose.errors import ConfigError, ShapeError, option_items
 
 __all__ = ["silhouette", "edge_map", "blur_edges", "FrameFeatures", "compute_features", "FEATURE_OPTIONS",
            "parse_feature_options"]
@@ -352,10 +352,7 @@ def parse_feature_options(text: str) -> tuple[dict, dict]:
     """
     sil: dict = {}
     edge: dict = {}
-    for item in filter(None, (t.strip() for t in str(text).split(","))):
-        key, sep, value = (t.strip() for t in item.partition("="))
-        if not sep:
-            raise ConfigError(f"feature option {item!r} is not key=value")
+    for key, value in option_items(text, "feature option"):
         if key not in FEATURE_OPTIONS:
             raise ConfigError(f"unknown feature option {key!r} (known: {', '.join(FEATURE_OPTIONS)})")
         target, kw = FEATURE_OPTIONS[key]

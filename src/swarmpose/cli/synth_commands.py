@@ -14,15 +14,15 @@ from swarmpose.cli.common import console, fail_on_user_error, print_json
 
 def parse_albedo(text: str) -> dict[str, float]:
     """``"shirt=0.6,trousers=0.15"`` over :class:`~swarmpose.synth.BodySettings`'s default albedos."""
-    from swarmpose.errors import ConfigError
+    from swarmpose.errors import ConfigError, option_items
     from swarmpose.synth import BodySettings
     from swarmpose.synth.body import MATERIALS
 
+    form = f"material=value with a material of {', '.join(MATERIALS)}"
     out = dict(BodySettings().albedo)
-    for item in filter(None, (s.strip() for s in text.split(","))):
-        key, sep, value = (s.strip() for s in item.partition("="))
-        if not sep or key not in MATERIALS:
-            raise ConfigError(f"--albedo: {item!r} is not material=value with a material of {', '.join(MATERIALS)}")
+    for key, value in option_items(text, "--albedo:", form):
+        if key not in MATERIALS:
+            raise ConfigError(f"--albedo: {f'{key}={value}'!r} is not {form}")
         try:
             out[key] = float(value)
         except ValueError:

@@ -12,7 +12,7 @@ import dataclasses
 from dataclasses import dataclass
 from typing import Any
 
-from swarmpose.errors import ConfigError
+from swarmpose.errors import ConfigError, option_items
 
 __all__ = ["Entry", "SUITES", "apply_variant", "parse_fitness_options", "suite"]
 
@@ -107,13 +107,7 @@ def suite(name: str) -> list[Entry]:
 
 def parse_fitness_options(text: str) -> dict[str, Any]:
     """``"terms=silhouette,edge_top=false"`` → ``{"terms": "silhouette", "edge_top": False}``."""
-    out: dict[str, Any] = {}
-    for item in filter(None, (s.strip() for s in text.split(","))):
-        if "=" not in item:
-            raise ConfigError(f"fitness option {item!r} is not key=value")
-        k, v = (s.strip() for s in item.split("=", 1))
-        out[k] = {"true": True, "false": False}.get(v.lower(), v)
-    return out
+    return {k: {"true": True, "false": False}.get(v.lower(), v) for k, v in option_items(text, "fitness option")}
 
 
 def apply_variant(config: Any, variant: str) -> Any:
