@@ -117,7 +117,8 @@ def test_feature_options():
     assert sil == {"threshold": 30} and edge == {"threshold": 8.5, "dilate_px": 9}
     assert parse_feature_options("") == ({}, {})
     for bad, match in (("edge_treshold=8", "known: silhouette_threshold"), ("edge_threshold", "key=value"),
-                       ("edge_sigma_px=wide", "number"), ("silhouette_open_px=2.5", "whole")):
+                       ("edge_sigma_px=wide", "number"), ("silhouette_open_px=2.5", "whole"),
+                       ("edge_threshold=-5", ">= 0"), ("edge_sigma_px=nan", ">= 0")):
         with pytest.raises(ConfigError, match=match):
             parse_feature_options(bad)
     # the options reach the feature code: a low edge threshold keeps the faint inner edge of a

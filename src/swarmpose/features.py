@@ -348,7 +348,7 @@ def parse_feature_options(text: str) -> tuple[dict, dict]:
     ------
     ConfigError
         An item is not ``key=value``, the key is unknown (the message lists the known ones) or the
-        value is not a number.
+        value is not a number >= 0.
     """
     sil: dict = {}
     edge: dict = {}
@@ -360,6 +360,8 @@ def parse_feature_options(text: str) -> tuple[dict, dict]:
             v = float(value)
         except ValueError:
             raise ConfigError(f"feature option {key} needs a number, got {value!r}") from None
+        if not (np.isfinite(v) and v >= 0):  # grey levels and pixel sizes
+            raise ConfigError(f"feature option {key} needs a number >= 0, got {value!r}")
         if key in _WHOLE_NUMBER_OPTIONS:
             if v != int(v):
                 raise ConfigError(f"feature option {key} needs a whole number, got {value!r}")

@@ -79,3 +79,24 @@ def test_fitness_option_parsing():
     assert parse_fitness_options("terms=silhouette, edge_top=false") == {"terms": "silhouette", "edge_top": False}
     with pytest.raises(ConfigError):
         parse_fitness_options("terms")
+    assert parse_fitness_options("edge_top=NO,x=On") == {"edge_top": False, "x": True}
+    assert parse_fitness_options("edge_top=0") == {"edge_top": "0"}  # left to the fitness to refuse
+
+
+@pytest.mark.parametrize("text", ["edge_top=0", "edge_top=maybe", "edge_top=1"])
+def test_a_boolean_fitness_option_that_is_not_a_boolean_is_refused(text):
+    from swarmpose.fitness.base import ImageOptions, parse_image_options
+
+    with pytest.raises(ConfigError, match="edge_top must be a bool"):
+        parse_image_options(parse_fitness_options(text), ImageOptions())
+    assert parse_image_options(parse_fitness_options("edge_top=off"), ImageOptions()).edge_top is False
+
+
+@pytest.mark.parametrize(("variant", "message"), [
+    ("budget=abc", "1000, 2000"), ("budget=0", "1000, 2000"), ("budget=1500", "1000, 2000"),
+    ("stage2=20", "stage2=PxI"), ("stage2=20x40x2", "stage2=PxI"), ("stage2=0x40", "stage2=PxI"),
+    ("global=axb", "global=PxI"), ("hard=false", "expected hard"), ("budget", "budget=B"),
+    ("nonsense=1", "unknown variant")])
+def test_malformed_variants_are_refused_with_the_expected_form(model, variant, message):
+    with pytest.raises(ConfigError, match=message):
+        apply_variant(optim.get("sppso", model=model, fps=20.0), variant)

@@ -56,3 +56,28 @@ def test_export_json_round_trip(fake_results, tmp_path: Path):
     np.testing.assert_allclose(world[:, idx], res.model.joint_positions(res.run(1).params), atol=1e-3)
     missing = CliRunner().invoke(app, ["export", str(fake_results[0]), "--run", "7", "--out", str(bvh)])
     assert missing.exit_code == 2 and "no finished run 7" in " ".join(missing.output.split())
+
+
+def test_output_paths_a_user_gets_wrong_are_handled(fake_results, tmp_path: Path):
+    """export --out FOLDER writes into it; report --out FILE and show --out x.xyz are clear errors;
+    a wrong --sequence is an error (exit 2), not a silent skip of the overlays."""
+    res = _copy(fake_results[0], tmp_path)
+    folder = tmp_path / "bvh"
+    folder.mkdir()
+    out = CliRunner().invoke(app, ["export", str(res), "--out", str(folder), "--json"])
+    assert out.exit_code == 0, out.output
+    assert json.loads(out.stdout)["bvh"] == str(folder / "res_run000.bvh") and (folder / "res_run000.bvh").is_file()
+    a_file = folder / "res_run000.bvh"
+    bad = CliRunner().invoke(app, ["report", str(res), "--out", str(a_file)])
+    assert bad.exit_code == 2 and "is a file" in " ".join(bad.output.split())
+    bad = CliRunner().invoke(app, ["report", str(res), "--sequence", str(tmp_path / "nonexist"), "--video"])
+    assert bad.exit_code == 2 and "no sequence folder there" in " ".join(bad.output.split())
+    bad = CliRunner().invoke(app, ["show", str(fake_results[1]), "--out", str(tmp_path / "x.xyz")])
+    assert bad.exit_code == 2 and ".png" in " ".join(bad.output.split())
+
+
+def test_an_unknown_suite_fails_before_any_clip_is_synthesised(tmp_path: Path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    bad = CliRunner().invoke(app, ["compare", "nosuch", "--clip", str(tmp_path / "never.bvh")])
+    assert bad.exit_code == 2 and "unknown suite 'nosuch'" in " ".join(bad.output.split())
+    assert not (tmp_path / "cache").exists()

@@ -75,3 +75,42 @@ def test_single_run_report(results_copy: Path):
     md = paths.summary.read_text()
     assert "**worst**" not in md and "| 0 |" in md
     assert paths.overlays == []
+
+
+def test_reproduce_command_carries_every_non_default_setting(results_copy: Path):
+    cfg = json.loads((results_copy / "config.json").read_text())
+    cfg.update(optim_variant="stage2=40x20", fitness_options="terms=silhouette", feature_options="edge_threshold=8",
+               motion="constant-velocity@root_position")
+    (results_copy / "config.json").write_text(json.dumps(cfg))
+    md = write_summary(results_copy).read_text()
+    cmd = md.split("Reproduce with:")[1].split("```")[1]
+    for part in ("--variant stage2=40x20", "--fitness-options terms=silhouette", "--features edge_threshold=8",
+                 "--motion constant-velocity@root_position", "--seed 3"):
+        assert part in cmd
+    assert "| optimiser variant | `stage2=40x20` |" in md and "| motion model | constant-velocity@root_position |" in md
+
+
+def test_run_folders_beyond_the_configured_runs_are_left_out(results_copy: Path):
+    cfg = json.loads((results_copy / "config.json").read_text())
+    n = cfg["runs"]
+    shutil.copytree(results_copy / "run_000", results_copy / f"run_{n:03d}")
+    res = load_results(results_copy)
+    assert [r.run for r in res.runs] == list(range(n))
+    assert res.skipped == [f"run_{n:03d} (beyond the {n} run(s) of config.json)"]
+
+
+def test_a_wrong_sequence_given_explicitly_is_an_error_not_a_note(results_copy: Path, fake_results, tmp_path: Path):
+    from swarmpose.errors import DataError
+    from swarmpose.track.tracker import sequence_identity
+
+    with pytest.raises(DataError, match="no sequence folder there"):
+        make_report(results_copy, sequence=tmp_path / "nonexist")
+    seq_dir = fake_results[1]
+    cfg = json.loads((results_copy / "config.json").read_text())
+    cfg["sequence_identity"] = "sequence.json sha1 0123456789abcdef"  # tracked on another clip
+    (results_copy / "config.json").write_text(json.dumps(cfg))
+    with pytest.raises(DataError, match="is not the tracked sequence"):
+        make_report(results_copy, sequence=seq_dir, overlay_frames=1)
+    cfg["sequence_identity"] = sequence_identity(seq_dir)
+    (results_copy / "config.json").write_text(json.dumps(cfg))
+    assert len(make_report(results_copy, sequence=seq_dir, overlay_frames=1).overlays) == 1

@@ -135,13 +135,49 @@ def test_resume_checks_the_configuration(short_sequence, tmp_path):
     cfg_file.write_text(json.dumps(record))
     again = track_runs(short_sequence, cfg, 1, tmp_path, resume=True, workers=1, progress=False)
     assert again["d_mean_mm"] == first["d_mean_mm"]
-    with pytest.raises(ConfigError, match="another configuration"):
+    with pytest.raises(ConfigError, match=r"other settings \(seed: 2 there, 3 now\)"):
         track_runs(short_sequence, TrackConfig(algo="sppso", fps=20.0, seed=3), 1, tmp_path, resume=True,
                    workers=1, progress=False)
+    with pytest.raises(ConfigError, match=r"fps: 20.0 there, 12.0 now"):  # not an IndexError from a stale IK
+        track_runs(short_sequence, TrackConfig(algo="sppso", fps=12.0, seed=2), 1, tmp_path, resume=True,
+                   workers=1, progress=False)
+    track_runs(short_sequence, cfg, 2, tmp_path, resume=True, workers=1, progress=False)  # runs may be added
+    with pytest.raises(ConfigError, match="holds 2 runs; resuming with --runs 1"):
+        track_runs(short_sequence, cfg, 1, tmp_path, resume=True, workers=1, progress=False)
+    with pytest.raises(ConfigError, match="already holds finished tracking results .*pass --resume"):
+        track_runs(short_sequence, cfg, 2, tmp_path, workers=1, progress=False)
+    record = json.loads(cfg_file.read_text())
+    record["sequence_identity"] = "sequence.json sha1 0000000000000000"  # as if another clip had been tracked
+    cfg_file.write_text(json.dumps(record))
+    with pytest.raises(ConfigError, match="sequence: "):
+        track_runs(short_sequence, cfg, 2, tmp_path, resume=True, workers=1, progress=False)
+    del record["sequence_identity"]
     record["fitness_kind"] = "deutscher_reid"  # "auto" resolved differently when the folder was written
     cfg_file.write_text(json.dumps(record))
-    with pytest.raises(ConfigError, match="another configuration"):
-        track_runs(short_sequence, cfg, 1, tmp_path, resume=True, workers=1, progress=False)
+    with pytest.raises(ConfigError, match="fitness_kind: 'deutscher_reid' there"):
+        track_runs(short_sequence, cfg, 2, tmp_path, resume=True, workers=1, progress=False)
+
+
+def test_a_reused_folder_never_misreads_the_cached_ik_fit(short_sequence, tmp_path):
+    """ik.npz and subject.json are reused only for the same sequence, model and frame rate; a bad option
+    is refused before anything is written."""
+    from swarmpose.errors import ConfigError
+    from swarmpose.track.tracker import prepare_track
+
+    with pytest.raises(ConfigError, match="unknown"):
+        prepare_track(short_sequence, TrackConfig(algo="nosuch", fps=20.0), tmp_path / "a")
+    with pytest.raises(ConfigError, match="stage2=PxI"):
+        prepare_track(short_sequence, TrackConfig(algo="sppso", fps=20.0, optim_variant="stage2=20"), tmp_path / "a")
+    assert not (tmp_path / "a").exists()
+    s20 = prepare_track(short_sequence, TrackConfig(fps=20.0), tmp_path / "b")
+    s12 = prepare_track(short_sequence, TrackConfig(fps=12.0), tmp_path / "b")  # ik.npz of 20 fps is there
+    fresh = prepare_track(short_sequence, TrackConfig(fps=12.0), None)
+    assert len(s12.frame_indices) < len(s20.frame_indices)
+    np.testing.assert_array_equal(s12.ik_params, fresh.ik_params)
+    again = prepare_track(short_sequence, TrackConfig(fps=12.0), tmp_path / "b")  # now from the cache
+    np.testing.assert_array_equal(again.ik_params, fresh.ik_params)
+    with np.load(tmp_path / "b" / "ik.npz", allow_pickle=False) as z:
+        assert '"fps": 12.0' in str(z["key"])
 
 
 def test_observe_hook_sees_every_frame_and_its_observation_is_tracked(short_sequence):

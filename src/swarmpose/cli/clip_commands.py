@@ -104,6 +104,13 @@ def ik(
     }
     if out is not None:
         out = Path(out)
+        if out.is_dir():
+            from swarmpose.errors import ConfigError
+
+            raise ConfigError(f"--out {out} is a folder; give the .npz file to write, "
+                              f"e.g. {out / (c.name + '_ik.npz')}")
+        if out.suffix != ".npz":
+            out = out.with_name(out.name + ".npz")  # what numpy would write anyway; say so
         out.parent.mkdir(parents=True, exist_ok=True)
         np.savez(out, params=res.params, joints=body.joints15(res.params), gt_joints=c.joints,
                  joint_error_mm=res.joint_error_mm, frame_times=c.frame_times,

@@ -21,18 +21,20 @@ def compare(
     sources: list[str] = typer.Option(None, "--clip", help="Sequence folders or BVH clips (repeatable); "
                                                             "default: the shared walking clip."),
     runs: int = typer.Option(5, min=1, help="Runs per entry."),
-    seed: int = typer.Option(0, help="Seed; run k of every entry draws from SeedSequence([seed, k])."),
+    seed: int = typer.Option(0, min=0, help="Seed (>= 0); run k of every entry draws from SeedSequence(\\[seed, k])."),
     out: Path = typer.Option(None, help="Output folder (default results/compare/<suite>)."),
-    downsample: int = typer.Option(1, help="Track on images downsampled by 2 or 4."),
-    workers: int = typer.Option(None, help="Parallel local processes (default: one per core)."),
+    downsample: int = typer.Option(1, help="Image downsampling: 1 (full resolution), 2, 4 or 8."),
+    workers: int = typer.Option(None, min=1, help="Parallel local processes (default: one per core)."),
     scheduler: str = typer.Option(None, help="Dask scheduler address: run the jobs on that cluster instead."),
     resume: bool = typer.Option(False, help="Continue interrupted runs."),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object with the table's rows."),
 ) -> None:
     """Run an experiment suite (entries × clips × runs in parallel) and write a comparison table."""
     from swarmpose.experiments.run import run_suite
+    from swarmpose.experiments.suites import suite as suite_entries
     from swarmpose.track.runner import resolve_sequence
 
+    suite_entries(suite)  # an unknown suite fails before any clip is synthesised
     seqs = [resolve_sequence(s, progress=not json_out) for s in (sources or [str(DEFAULT_CLIP)])]
     out = out or Path("results") / "compare" / suite
     report = run_suite(suite, seqs, out, runs=runs, seed=seed, workers=workers, scheduler=scheduler,

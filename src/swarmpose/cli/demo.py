@@ -7,7 +7,7 @@ from pathlib import Path
 import typer
 
 from swarmpose.cli.app import app
-from swarmpose.cli.common import console, fail_on_user_error, print_json
+from swarmpose.cli.common import console, err_console, fail_on_user_error, print_json
 
 DEFAULT_CLIP = Path(__file__).resolve().parents[3].parent / "shared" / "data" / "mocap" / "cmu_16_16_walk.bvh"
 
@@ -20,7 +20,7 @@ def demo(
     algo: str = typer.Option("sppso", help="Algorithm (see `swarmpose algorithms`)."),
     fps: float = typer.Option(20.0, help="Tracking frame rate."),
     runs: int = typer.Option(3, min=1, help="Independent runs."),
-    seed: int = typer.Option(0, help="Seed."),
+    seed: int = typer.Option(0, min=0, help="Seed (>= 0); run k draws from SeedSequence(\\[seed, k])."),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object with the summary and paths."),
 ) -> None:
     """Synthesise the walking clip (cached), track it with SPPSO at 20 fps, write results and a report.
@@ -34,10 +34,15 @@ def demo(
     from swarmpose.track.tracker import TrackConfig
 
     if not Path(clip).is_file():
-        raise FileNotFoundError(f"demo clip {clip} not found: the shared data folder must sit beside the repo")
+        where = (": the shared data folder (../shared/data/mocap) must sit beside the repository"
+                 if Path(clip) == DEFAULT_CLIP else "")
+        raise FileNotFoundError(f"demo clip {clip} not found{where}")
     seq = resolve_sequence(clip, progress=not json_out)
-    summary = track_runs(seq, TrackConfig(algo=algo, fps=fps, seed=seed), runs, out, resume=False,
-                         progress=not json_out) if not (out / "summary.json").is_file() else _reuse(out)
+    config = TrackConfig(algo=algo, fps=fps, seed=seed)
+    if (out / "summary.json").is_file():
+        summary = _reuse(out, seq, config, runs)
+    else:
+        summary = track_runs(seq, config, runs, out, resume=(out / "config.json").is_file(), progress=not json_out)
     paths = make_report(out, overlay_frames=4)
     data = {**summary, "report": str(paths.summary), "figures": [str(p) for p in paths.figures],
             "overlays": [str(p) for p in paths.overlays]}
@@ -54,8 +59,18 @@ def demo(
         console.print(f"    {p}")
 
 
-def _reuse(out: Path) -> dict:
+def _reuse(out: Path, sequence, config, runs: int) -> dict:
+    """The finished demo in ``out`` when it was tracked with these settings; otherwise a clear error."""
     import json
 
-    console.print(f"[yellow]{out}/summary.json exists: reusing the tracked runs (delete the folder to redo)[/yellow]")
-    return json.loads((out / "summary.json").read_text())
+    from swarmpose.track.runner import check_results_folder
+
+    check_results_folder(out, sequence, config, runs, resume=True)  # other settings: refused, named
+    summary = json.loads((out / "summary.json").read_text())
+    if summary.get("runs") != runs:
+        from swarmpose.errors import ConfigError
+
+        raise ConfigError(f"{out} holds a finished demo of {summary.get('runs')} runs, not {runs}: delete the "
+                          "folder or pass another --out")
+    err_console.print(f"[yellow]{out}/summary.json exists: reusing the tracked runs (delete the folder to redo)[/yellow]")
+    return summary

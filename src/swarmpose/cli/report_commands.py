@@ -33,8 +33,11 @@ def report(
     the overlays draw the tracked cones (left limbs blue, right limbs vermillion, torso/head green)
     and the ground-truth skeleton (yellow) on every camera view.
     """
+    from swarmpose.errors import ConfigError
     from swarmpose.report import make_report
 
+    if out is not None and out.exists() and not out.is_dir():
+        raise ConfigError(f"--out {out} is a file; the report needs a folder")
     paths = make_report(results_dir, video=video, overlay_frames=frames, run=run, out_dir=out,
                         sequence=sequence, video_format=video_format.lower())
     for note in paths.notes:
@@ -56,7 +59,8 @@ def report(
 @fail_on_user_error
 def export(
     results_dir: Annotated[Path, typer.Argument(help="A results folder written by `swarmpose track`.")],
-    out: Annotated[Path, typer.Option("--out", help="The BVH file to write.")],
+    out: Annotated[Path, typer.Option("--out", help="The BVH file to write (or a folder: "
+                                                    "<results folder>_runXXX.bvh in it).")],
     run: Annotated[int, typer.Option("--run", min=0, help="Which run to export.")] = 0,
     z_up: Annotated[bool, typer.Option("--z-up", help="Keep the world's Z-up axes (default: Y up, "
                                                       "(x, z, -y)).")] = False,
@@ -79,6 +83,8 @@ def export(
         raise ConfigError(f"--unit must be one of {', '.join(scales)}, got {unit!r}")
     res = load_results(results_dir)
     r = res.run(run)
+    if out.is_dir():  # a folder: the file goes into it
+        out = out / f"{Path(results_dir).resolve().name}_run{run:03d}.bvh"
     fps = res.fps
     if not fps > 0:
         raise ConfigError(f"{results_dir / 'config.json'}: no tracking frame rate ('fps') recorded")

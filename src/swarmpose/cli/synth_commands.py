@@ -183,6 +183,8 @@ def show(
 
     from swarmpose.errors import ConfigError, DataError
 
+    if out is not None and out.suffix.lower() not in (".png", ".jpg", ".jpeg"):
+        raise ConfigError(f"--out {out}: the contact sheet is written as .png (or .jpg), not {out.suffix or 'a file without suffix'}")
     sheet = contact_sheet(seq_dir, frame)
     if scale != 1.0:
         if not scale > 0:

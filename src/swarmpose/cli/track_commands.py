@@ -7,7 +7,7 @@ from pathlib import Path
 import typer
 
 from swarmpose.cli.app import app
-from swarmpose.cli.common import console, fail_on_user_error, print_json
+from swarmpose.cli.common import console, err_console, fail_on_user_error, print_json
 
 
 @app.command()
@@ -18,7 +18,7 @@ def track(
     algo: str = typer.Option("sppso", help="Algorithm name (see `swarmpose algorithms`)."),
     fps: float = typer.Option(20.0, help="Tracking frame rate: the sequence is subsampled to it (60, 30, 20, 12...)."),
     runs: int = typer.Option(1, min=1, help="Independent runs (different random streams)."),
-    seed: int = typer.Option(0, help="Seed; run k draws from SeedSequence([seed, k]) (recorded)."),
+    seed: int = typer.Option(0, min=0, help="Seed (>= 0); run k draws from SeedSequence(\\[seed, k]) (recorded)."),
     out: Path = typer.Option(None, help="Results folder (default results/<sequence>-<algo>-<fps>fps)."),
     resume: bool = typer.Option(False, help="Continue an interrupted run in --out without redoing frames."),
     model: str = typer.Option("balan31", help="Body model name or spec file."),
@@ -28,7 +28,7 @@ def track(
     variant: str = typer.Option(
         "", help="Optimiser variant, as the compare suites use them: budget=B (SPPSO family: iterations x "
                  "B/1000), stage2=PxI, global=PxI, hard, apf=PxL (particles x layers of an APF)."),
-    downsample: int = typer.Option(1, help="Track on images downsampled by 2 or 4 (faster)."),
+    downsample: int = typer.Option(1, help="Image downsampling: 1 (full resolution), 2, 4 or 8 (faster, coarser)."),
     backend: str = typer.Option("numba", help="Fitness backend: numba (default) or reference."),
     fitness_options: str = typer.Option(
         "", help="Fitness options over each stage's own, key=value[,...]: terms=silhouette (no edge term), "
@@ -39,10 +39,10 @@ def track(
                  "silhouette_open_px, silhouette_close_px."),
     motion: str = typer.Option(
         "zero-velocity", help="Motion model that centres each frame's search: zero-velocity (the thesis's, "
-                              "sec. 5.3.2) or constant-velocity[:D][@GROUP+...] (moves on by D x the last "
+                              "sec. 5.3.2) or constant-velocity\\[:D]\\[@GROUP+...] (moves on by D x the last "
                               "step, D = 1 by default, only the named parameter groups if given, e.g. "
                               "@root_position; an extension, not in the papers, and worse on the walk)."),
-    workers: int = typer.Option(None, help="Parallel worker processes (default: one per core, at most --runs)."),
+    workers: int = typer.Option(None, min=1, help="Parallel worker processes (default: one per core, at most --runs)."),
     scheduler: str = typer.Option(None, help="Run on a Dask cluster at this address (dask.distributed)."),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object with the summary."),
 ) -> None:
@@ -69,10 +69,17 @@ def track(
         out = Path("results") / f"{name}-{algo}-{fps:g}fps"
     summary = track_runs(seq, cfg, runs, out, resume=resume, workers=workers, scheduler=scheduler,
                          progress=not json_out)
+    gap = summary["frame_interval_s"]
+    if gap["max"] - gap["min"] > 1e-6:
+        err_console.print(f"[yellow]note:[/yellow] {fps:g} fps does not divide the sequence's frame rate: the "
+                          f"tracked frames are {1000 * gap['min']:.0f}-{1000 * gap['max']:.0f} ms apart "
+                          f"(mean {1000 * gap['mean']:.1f} ms), the nearest frames to a {fps:g} fps clock",
+                          highlight=False)
     if json_out:
         print_json(summary)
         return
-    console.print(f"[bold]{algo}[/bold] on {out.name} at {fps:g} fps, {runs} run(s), "
+    name = seq.name if isinstance(seq, Path) else str(seq)
+    console.print(f"[bold]{algo}[/bold] on {name} at {fps:g} fps, {runs} run(s), "
                   f"{summary['evals_per_frame']} evaluations per frame ({summary['fitness']} fitness)")
     console.print(f"  D_mean {summary['d_mean_mm']:.1f} mm, D_max {summary['d_max_mm']:.1f} mm "
                   f"(IK floor {summary['ik_floor_mm']:.1f} mm); MMTA {100 * summary['mmta']:.1f} %; "

@@ -11,7 +11,7 @@ import numpy as np
 
 from swarmpose.experiments.suites import Entry, suite
 from swarmpose.metrics import aggregate_runs
-from swarmpose.track.runner import Job, errors_from_summary, run_jobs
+from swarmpose.track.runner import Job, check_results_folder, errors_from_summary, run_jobs
 from swarmpose.track.tracker import TrackConfig, config_record, prepare_track
 
 __all__ = ["run_suite", "comparison_table"]
@@ -35,6 +35,7 @@ def run_suite(name: str, sequences: list[Path], out_dir: Path, *, runs: int = 5,
             cfg = TrackConfig(algo=e.algo, fps=e.fps, fitness=e.fitness, seed=seed, downsample=downsample,
                               optim_variant=e.variant, fitness_options=e.fitness_options)
             cell = out_dir / _slug(Path(seq).name) / _slug(e.label)
+            check_results_folder(cell, seq, cfg, runs, resume)  # other settings in the cell: refused, named
             setup = prepare_track(seq, cfg, cell)  # IK floor once per cell, before the workers start
             cell.mkdir(parents=True, exist_ok=True)
             (cell / "config.json").write_text(json.dumps(config_record(setup, runs), indent=1) + "\n")

@@ -105,9 +105,16 @@ def suite(name: str) -> list[Entry]:
         raise ConfigError(f"unknown suite {name!r}; known: {', '.join(SUITES)}") from None
 
 
+_BOOLEAN_WORDS = {"true": True, "yes": True, "on": True, "false": False, "no": False, "off": False}
+
+
 def parse_fitness_options(text: str) -> dict[str, Any]:
-    """``"terms=silhouette,edge_top=false"`` → ``{"terms": "silhouette", "edge_top": False}``."""
-    return {k: {"true": True, "false": False}.get(v.lower(), v) for k, v in option_items(text, "fitness option")}
+    """``"terms=silhouette,edge_top=false"`` → ``{"terms": "silhouette", "edge_top": False}``.
+
+    true/yes/on and false/no/off (any case) become booleans; other values stay text, so that a
+    boolean option given ``0`` or ``maybe`` is refused by the fitness instead of read as true.
+    """
+    return {k: _BOOLEAN_WORDS.get(v.lower(), v) for k, v in option_items(text, "fitness option")}
 
 
 def apply_variant(config: Any, variant: str) -> Any:
@@ -126,36 +133,44 @@ def apply_variant(config: Any, variant: str) -> Any:
         return config
     from swarmpose.optim.staged import Stage
 
-    key, _, value = variant.partition("=")
+    key, sep, value = (t.strip() for t in variant.partition("="))
+    forms = {"budget": "budget=B, e.g. budget=2000", "stage2": "stage2=PxI, e.g. stage2=40x20",
+             "global": "global=PxI, e.g. global=400x10", "apf": "apf=PxL, e.g. apf=700x5", "hard": "hard"}
+    if key not in forms:
+        raise ConfigError(f"unknown variant {variant!r} (budget=B, stage2=PxI, global=PxI, hard, apf=PxL)")
+    if (key == "hard") == bool(sep):
+        raise ConfigError(f"variant {variant!r}: expected {forms[key]}")
+
+    def sizes() -> tuple[int, int]:
+        parts = value.lower().split("x")
+        if len(parts) != 2 or not all(p.strip().isdigit() and int(p) >= 1 for p in parts):
+            raise ConfigError(f"variant {variant!r}: expected {forms[key]} (two whole numbers >= 1)")
+        return int(parts[0]), int(parts[1])
+
     if key == "apf":
         if not hasattr(config, "n_layers"):
             raise ConfigError(f"variant {variant!r} needs an annealed particle filter, {config.name!r} is not one")
-        try:
-            p, layers = (int(v) for v in value.lower().split("x"))
-        except ValueError:
-            raise ConfigError(f"variant {variant!r}: expected apf=PxL, e.g. apf=700x5") from None
+        p, layers = sizes()
         return dataclasses.replace(config, n_particles=p, n_layers=layers)
     stages = getattr(config, "stages", None)
     if stages is None:
         raise ConfigError(f"variant {variant!r} needs a staged configuration, {config.name!r} has no stages")
     if key == "budget":
+        if not value.isdigit() or int(value) < 1000 or int(value) % 1000:
+            raise ConfigError(f"variant {variant!r}: the budget must be 1000, 2000, 3000... evaluations per frame")
         factor = int(value) / 1000.0
-        if factor * 1000 != int(value) or factor < 1:
-            raise ConfigError(f"budget must be a multiple of 1000, got {value}")
         new = tuple(dataclasses.replace(s, n_iterations=int(round(s.n_iterations * factor))) for s in stages)
     elif key == "stage2":
-        p, i = (int(v) for v in value.lower().split("x"))
+        p, i = sizes()
         new = (*stages[:-1], dataclasses.replace(stages[-1], n_particles=p, n_iterations=i))
     elif key == "global":
         import numpy as np
 
-        p, i = (int(v) for v in value.lower().split("x"))
+        p, i = sizes()
         active = np.logical_or.reduce([s.active for s in stages])
         new = (Stage("global", active, np.ones(active.shape[0]), p, i, dict(stages[0].fitness_options)),)
-    elif key == "hard":
+    else:  # hard
         first = stages[0].active
         new = (stages[0],) + tuple(
             dataclasses.replace(s, active=s.active & ~first, sigma_scale=s.sigma_scale) for s in stages[1:])
-    else:
-        raise ConfigError(f"unknown variant {variant!r} (budget=B, stage2=PxI, global=PxI, hard, apf=PxL)")
     return dataclasses.replace(config, stages=new)

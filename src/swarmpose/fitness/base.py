@@ -79,7 +79,7 @@ def parse_image_options(options: Mapping[str, Any] | None, default: ImageOptions
     if unknown:
         raise ConfigError(f"unknown fitness option(s) {unknown} (known: {', '.join(_OPTION_KEYS)})")
     return ImageOptions(edge_cones=options.get("edge_cones", default.edge_cones),
-                        edge_top=bool(options.get("edge_top", default.edge_top)),
+                        edge_top=options.get("edge_top", default.edge_top),
                         terms=options.get("terms", default.terms))
 
 

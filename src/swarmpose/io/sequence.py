@@ -519,7 +519,7 @@ def _prepare_dir(path: Path, overwrite: bool) -> None:
             raise DataError(f"{path}: exists and is not a folder")
         if any(path.iterdir()):
             if not overwrite:
-                raise DataError(f"{path}: folder is not empty (use overwrite to replace a sequence)")
+                raise DataError(f"{path}: folder is not empty (`swarmpose synth --force`, or overwrite=True, replaces a sequence)")
             if not (path / _META).is_file() and not (path / _CAMERAS).is_file():
                 raise DataError(f"{path}: refusing to overwrite a non-empty folder that holds no sequence")
             shutil.rmtree(path)

@@ -134,6 +134,8 @@ def make_report(
             res.sequence_path(sequence)
             _ = res.model
         except DataError as exc:
+            if sequence is not None:
+                raise  # the folder the user named is wrong: an error, not a note
             notes.append(f"overlays skipped: {exc}")
         else:
             if overlay_frames > 0:

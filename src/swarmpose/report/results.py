@@ -187,7 +187,18 @@ class Results:
         DataError
             The folder cannot be found.
         """
-        raw = override if override is not None else self.config.get("sequence")
+        if override is not None:
+            p = Path(override)
+            if not (p / "sequence.json").is_file():
+                raise DataError(f"--sequence {str(p)!r}: no sequence folder there (no sequence.json)")
+            from swarmpose.track.tracker import sequence_identity
+
+            tracked = self.config.get("sequence_identity")
+            if tracked is not None and sequence_identity(p) != tracked:
+                raise DataError(f"--sequence {str(p)!r} is not the tracked sequence ({self.config.get('sequence')}, "
+                                f"{tracked}; this one has {sequence_identity(p)})")
+            return p
+        raw = self.config.get("sequence")
         if not raw:
             raise DataError(f"{self.path / 'config.json'}: no 'sequence' recorded; pass the sequence folder")
         p = Path(raw)
@@ -319,12 +330,16 @@ def load_results(results_dir: str | os.PathLike[str]) -> Results:
     config = _read_json(cfg_file)
     runs: list[RunData] = []
     skipped: list[str] = []
+    n_runs = config.get("runs")  # the runs summary.json aggregates; run folders beyond are left out
     for d in sorted(root.glob("run_*")):
         if not d.is_dir():
             continue
         try:
             k = int(d.name[4:])
         except ValueError:
+            continue
+        if isinstance(n_runs, int) and k >= n_runs:
+            skipped.append(f"{d.name} (beyond the {n_runs} run(s) of config.json)")
             continue
         if not ((d / "track.npz").is_file() and (d / "joints.npz").is_file()):
             why = "in progress" if (d / "progress.npz").is_file() else "no track.npz/joints.npz"

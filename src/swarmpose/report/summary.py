@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import shlex
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -77,15 +78,24 @@ def _table(header: Sequence[str], rows: Sequence[Sequence[str]], align: str | No
     return out
 
 
+#: ``config.json`` keys that are ``swarmpose track`` options, with their defaults (left out when default).
+_TRACK_OPTIONS = (("fps", "--fps", None), ("runs", "--runs", None), ("seed", "--seed", None),
+                  ("model", "--model", "balan31"), ("fitness", "--fitness", "auto"),
+                  ("optim_variant", "--variant", ""), ("fitness_options", "--fitness-options", ""),
+                  ("feature_options", "--features", ""), ("motion", "--motion", "zero-velocity"),
+                  ("downsample", "--downsample", 1), ("backend", "--backend", "numba"))
+
+
 def _reproduce(cfg: dict[str, Any]) -> str | None:
+    """The ``swarmpose track`` command line that repeats the run, every non-default setting included."""
     if not cfg.get("sequence") or not cfg.get("algo"):
         return None
-    parts = ["swarmpose track", str(cfg["sequence"]), f"--algo {cfg['algo']}"]
-    for key, opt in (("fps", "--fps"), ("runs", "--runs"), ("seed", "--seed"), ("model", "--model"),
-                     ("fitness", "--fitness"), ("downsample", "--downsample"), ("backend", "--backend")):
-        if cfg.get(key) is not None:
-            v = cfg[key]
-            parts.append(f"{opt} {v:g}" if isinstance(v, float) else f"{opt} {v}")
+    parts = ["swarmpose track", shlex.quote(str(cfg["sequence"])), f"--algo {shlex.quote(str(cfg['algo']))}"]
+    for key, opt, default in _TRACK_OPTIONS:
+        v = cfg.get(key)
+        if v is None or v == default:
+            continue
+        parts.append(f"{opt} {v:g}" if isinstance(v, float) else f"{opt} {shlex.quote(str(v))}")
     return " ".join(parts)
 
 
@@ -160,6 +170,10 @@ def write_summary(
         ("fitness evaluations per frame", str(evals) if evals else "–"),
         ("fitness", str(cfg.get("fitness_kind") or cfg.get("fitness") or s.get("fitness") or "–")),
         ("body model", f"{cfg.get('model', '–')}" + (f" (variant {cfg['variant']})" if cfg.get("variant") else "")),
+        ("fitness options", f"`{cfg['fitness_options']}`" if cfg.get("fitness_options") else "stage defaults"),
+        ("image features", f"`{cfg['feature_options']}`" if cfg.get("feature_options") else "defaults"),
+        ("optimiser variant", f"`{cfg['optim_variant']}`" if cfg.get("optim_variant") else "none"),
+        ("motion model", str(cfg.get("motion", "zero-velocity"))),
         ("fitness backend", str(cfg.get("backend", "–"))),
         ("image downsampling", str(cfg.get("downsample", "–"))),
         ("seed", f"{cfg['seed']} (run k draws from SeedSequence([{cfg['seed']}, k]))" if "seed" in cfg else "–"),

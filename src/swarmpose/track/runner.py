@@ -20,9 +20,10 @@ from typing import Any
 import numpy as np
 
 from swarmpose.metrics import TrackErrors, aggregate_runs
-from swarmpose.track.tracker import TrackConfig, config_record, prepare_track, run_tracker
+from swarmpose.track.tracker import TrackConfig, config_record, prepare_track, run_tracker, sequence_location
 
-__all__ = ["Job", "errors_from_summary", "resolve_sequence", "run_job", "run_jobs", "track_runs"]
+__all__ = ["Job", "check_results_folder", "errors_from_summary", "resolve_sequence", "run_job", "run_jobs",
+           "track_runs"]
 
 
 @dataclass(frozen=True)
@@ -76,7 +77,13 @@ def run_jobs(jobs: Sequence[Job], *, workers: int | None = None, scheduler: str 
         from dask.distributed import Client
         from dask.distributed import as_completed as dask_completed
 
-        with Client(scheduler) as client:
+        try:
+            client = Client(scheduler)
+        except (OSError, TimeoutError) as exc:
+            from swarmpose.errors import ConfigError
+
+            raise ConfigError(f"cannot reach the Dask scheduler at {scheduler!r}: {exc}") from None
+        with client:
             futures = {client.submit(run_job, j, pure=False): i for i, j in enumerate(jobs)}
             for fut in dask_completed(futures):
                 results[futures[fut]] = fut.result()
@@ -107,27 +114,67 @@ def errors_from_summary(summary: dict[str, Any]) -> TrackErrors:
     return TrackErrors(d_per_frame=np.zeros(0), per_joint=summary["per_joint"], **{k: summary[k] for k in keys})
 
 
+def check_results_folder(out_dir: Path, sequence: str | Path, config: TrackConfig, runs: int, resume: bool) -> None:
+    """Refuse to mix runs of different settings in one results folder (before anything is written).
+
+    Without ``resume`` the folder must not hold tracking results yet. With ``resume`` its
+    ``config.json`` must name the same sequence and settings, and at least as many runs (more may be
+    added: runs are independent).
+    """
+    from swarmpose.errors import ConfigError
+    from swarmpose.track.tracker import sequence_identity
+
+    cfg_file = out_dir / "config.json"
+    started = sorted(p.parent.name for p in out_dir.glob("run_*/*.npz"))
+    if not resume:
+        if started or (out_dir / "summary.json").is_file():
+            state = "finished" if (out_dir / "summary.json").is_file() else "unfinished"
+            raise ConfigError(f"{out_dir} already holds {state} tracking results ({', '.join(sorted(set(started)))}"
+                              "): pass --resume to continue them with the same settings, or choose another --out")
+        return
+    if not cfg_file.is_file():
+        return  # nothing to resume yet: a fresh start
+    old = json.loads(cfg_file.read_text())
+    new = asdict(config)
+    defaults = asdict(TrackConfig())  # a folder written before a setting existed used its default
+    differ = [f"{k}: {old.get(k, defaults[k])!r} there, {v!r} now" for k, v in new.items()
+              if old.get(k, defaults[k]) != v]
+    # "auto" may resolve differently in another version (AAPSO: markers -> reprojection)
+    if old.get("fitness_kind", config.fitness_kind) != config.fitness_kind:
+        differ.append(f"fitness_kind: {old['fitness_kind']!r} there, {config.fitness_kind!r} now")
+    if "sequence_identity" in old:
+        if old["sequence_identity"] != sequence_identity(sequence):
+            differ.append(f"sequence: {old.get('sequence')} there, {sequence} now")
+    elif Path(str(old.get("sequence", ""))).is_dir() and Path(str(sequence)).is_dir() and \
+            Path(old["sequence"]).resolve() != Path(str(sequence)).resolve():
+        differ.append(f"sequence: {old['sequence']} there, {sequence} now")
+    if differ:
+        raise ConfigError(f"{cfg_file}: the runs being resumed used other settings ({'; '.join(differ)})")
+    if isinstance(old.get("runs"), int) and runs < old["runs"]:
+        raise ConfigError(f"{cfg_file}: the folder holds {old['runs']} runs; resuming with --runs {runs} would "
+                          f"leave runs {runs}..{old['runs'] - 1} out of the summary (pass --runs {old['runs']} "
+                          "or more)")
+
+
+def _intervals(frame_times: np.ndarray) -> dict[str, float]:
+    """Mean, shortest and longest time between tracked frames: a rate that does not divide the
+    sequence's (25 fps from 60) picks the nearest frames, so the spacing alternates (33 / 50 ms)."""
+    d = np.diff(np.asarray(frame_times, dtype=np.float64))
+    if d.size == 0:
+        return {"mean": float("nan"), "min": float("nan"), "max": float("nan")}
+    return {"mean": float(d.mean()), "min": float(d.min()), "max": float(d.max())}
+
+
 def track_runs(sequence: str | Path, config: TrackConfig, runs: int, out_dir: Path, *, resume: bool = False,
                workers: int | None = None, scheduler: str | None = None, progress: bool = True) -> dict[str, Any]:
     """Track ``runs`` runs of one configuration and write ``out_dir`` (config, runs, summary)."""
     out_dir = Path(out_dir)
+    check_results_folder(out_dir, sequence, config, runs, resume)  # before anything is written
     out_dir.mkdir(parents=True, exist_ok=True)
     setup = prepare_track(sequence, config, out_dir)  # fits and caches the IK floor once
-    cfg_file = out_dir / "config.json"
-    record = config_record(setup, runs)
-    if cfg_file.is_file() and resume:
-        old = json.loads(cfg_file.read_text())
-        defaults = asdict(TrackConfig())  # a folder written before a setting existed used its default
-        same = {k: old.get(k, defaults[k]) for k in asdict(config)} == {k: record[k] for k in asdict(config)}
-        # "auto" may resolve differently in another version (AAPSO: markers -> reprojection)
-        same = same and old.get("fitness_kind", record["fitness_kind"]) == record["fitness_kind"]
-        if not same:
-            from swarmpose.errors import ConfigError
-
-            raise ConfigError(f"{cfg_file}: the run being resumed used another configuration")
-    cfg_file.write_text(json.dumps(record, indent=1) + "\n")
+    (out_dir / "config.json").write_text(json.dumps(config_record(setup, runs), indent=1) + "\n")
     jobs = [Job(str(sequence), asdict(config), k, str(out_dir), resume) for k in range(runs)]
-    if progress and workers == 1:
+    if progress and scheduler is None and (workers == 1 or runs == 1):
         # in-process: one bar per run, by frames
         from tqdm import tqdm
 
@@ -153,13 +200,14 @@ def track_runs(sequence: str | Path, config: TrackConfig, runs: int, out_dir: Pa
         "mmtp_mm": agg["mmtp"],
         "frames_per_s": float(np.mean([r["frames_per_s"] for r in per_run])),
         "frames": int(len(setup.frame_indices)),
+        "frame_interval_s": _intervals(setup.frame_times),
         "worst": {"run": agg["worst"]["run"], "d_mean_mm": agg["worst"]["d_mean"],
                   "d_max_mm": agg["worst"]["d_max"], "mmta": agg["worst"]["mmta"]},
         "d_mean_std_over_runs": agg["d_mean_std_over_runs"],
         "per_joint_mm": agg["per_joint"],
         "per_run": [{"run": r["run"], "d_mean_mm": r["d_mean"], "d_max_mm": r["d_max"], "mmta": r["mmta"],
                      "frames_per_s": r["frames_per_s"]} for r in sorted(per_run, key=lambda r: r["run"])],
-        "sequence": str(sequence),
+        "sequence": sequence_location(sequence),
         "fitness": config.fitness_kind,
         "motion": config.motion,
         "seed": config.seed,

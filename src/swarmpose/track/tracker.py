@@ -18,6 +18,7 @@ stopped and gives the same result as an uninterrupted one.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import platform
@@ -81,8 +82,23 @@ class TrackConfig:
         from swarmpose.experiments.suites import parse_fitness_options
         from swarmpose.features import parse_feature_options
 
-        parse_fitness_options(self.fitness_options)  # fail early, before any run starts
+        # fail early, before anything is written: options, features and backend for this fitness
+        options = parse_fitness_options(self.fitness_options)
         parse_feature_options(self.feature_options)
+        from swarmpose.fitness import BACKENDS
+        from swarmpose.fitness.base import ImageOptions, parse_image_options
+
+        if self.fitness_kind in IMAGE_FITNESS:
+            parse_image_options(options, ImageOptions())
+            known = tuple(BACKENDS)
+        else:
+            if options:
+                raise ConfigError(f"fitness options {self.fitness_options!r} apply to the image fitnesses "
+                                  f"({', '.join(IMAGE_FITNESS)}), not to the {self.fitness_kind} fitness")
+            known = ("numba", "reference")
+        if self.backend not in known:
+            raise ConfigError(f"unknown fitness backend {self.backend!r} for the {self.fitness_kind} fitness "
+                              f"(known: {', '.join(known)})")
         # canonical text, so that "constant-velocity" and "constant-velocity:1" resume each other
         object.__setattr__(self, "motion", str(parse_motion(self.motion)))
 
@@ -157,8 +173,54 @@ def _subject_for(seq: Any, spec) -> Subject:
                                measurements=measurements)
 
 
+def sequence_identity(sequence_path: str | Path) -> str:
+    """What identifies a sequence across moves of its folder: a hash of its ``sequence.json`` (our
+    sequence folders; it records the source clip and every synthesis setting), else the dataset spec."""
+    meta = Path(str(sequence_path)) / "sequence.json"
+    if meta.is_file():
+        return "sequence.json sha1 " + hashlib.sha1(meta.read_bytes()).hexdigest()[:16]
+    return str(sequence_path)
+
+
+def sequence_location(sequence_path: str | Path) -> str:
+    """The sequence as recorded in ``config.json``: an absolute folder path (so that ``report`` finds it
+    from any working directory), or a dataset spec (``humaneva:...``) as given."""
+    text = str(sequence_path)
+    if text.startswith(("humaneva:", "leewalk:")):
+        return text
+    return str(Path(text).resolve())
+
+
+def _ik_cache_key(sequence_path: str | Path, config: TrackConfig) -> str:
+    """What the cached IK fit (``ik.npz``) and ``subject.json`` of a results folder depend on."""
+    return json.dumps({"sequence": sequence_identity(sequence_path), "model": config.model,
+                       "variant": config.variant, "fps": config.fps}, sort_keys=True)
+
+
+def _read_ik_cache(out_dir: Path | None, key: str, frames: np.ndarray, n_params: int):
+    """``(params, joint_error_mm)`` of ``out_dir/ik.npz`` when it was fitted for this sequence, model and
+    frame rate, else ``None`` (a folder reused with other settings is fitted afresh, never misread)."""
+    ik_file = None if out_dir is None else out_dir / "ik.npz"
+    if ik_file is None or not ik_file.is_file() or not (out_dir / "subject.json").is_file():
+        return None
+    with np.load(ik_file, allow_pickle=False) as z:
+        if "key" in z.files and str(z["key"]) != key:
+            return None
+        # folders written before the key existed: the frames and the parameter count must still agree
+        if "frame_indices" in z.files and not np.array_equal(z["frame_indices"], frames):
+            return None
+        if z["params"].shape != (len(frames), n_params):
+            return None
+        return z["params"], z["joint_error_mm"]
+
+
 def prepare_track(sequence_path: str | Path, config: TrackConfig, out_dir: Path | None = None) -> TrackSetup:
-    """Load the sequence's metadata, build the subject's model and fit the IK floor (cached in out_dir)."""
+    """Load the sequence's metadata, build the subject's model and fit the IK floor (cached in out_dir).
+
+    The optimiser configuration is built (unknown algorithm, bad ``--variant``) before anything is
+    written. ``out_dir/ik.npz`` and ``subject.json`` are reused only when they were made for the same
+    sequence, body model and frame rate.
+    """
     from swarmpose.io.sequence import open_sequence
 
     seq = open_sequence(sequence_path)
@@ -167,20 +229,17 @@ def prepare_track(sequence_path: str | Path, config: TrackConfig, out_dir: Path 
             raise DataError(f"{sequence_path}: the sequence has no ground-truth joints; tracking needs "
                             "them for the start pose and the errors")
         spec = load_spec(config.model)
-        subject = None
-        if out_dir is not None and (out_dir / "subject.json").is_file():
-            subject = Subject.load(out_dir / "subject.json")
-        if subject is None:
-            subject = _subject_for(seq, spec)
-        model = BodyModel(spec, subject, config.variant)
-        parse_motion(config.motion).mask(model)  # unknown parameter groups fail here, before any run
         frames = np.asarray(seq.subsample(config.fps), dtype=np.int64)
         gt = np.asarray(seq.gt_joints)[frames]
         times = np.asarray(seq.frame_times)[frames]
-        ik_file = None if out_dir is None else out_dir / "ik.npz"
-        if ik_file is not None and ik_file.is_file():
-            with np.load(ik_file, allow_pickle=False) as z:
-                ik_params, ik_err = z["params"], z["joint_error_mm"]
+        key = _ik_cache_key(sequence_path, config)
+        cached = _read_ik_cache(out_dir, key, frames, len(spec.parameters))
+        subject = Subject.load(out_dir / "subject.json") if cached is not None else _subject_for(seq, spec)
+        model = BodyModel(spec, subject, config.variant)
+        parse_motion(config.motion).mask(model)  # unknown parameter groups fail here, before any run
+        algo = config.optimizer(model)  # unknown algorithm or variant: before the IK fit is written
+        if cached is not None:
+            ik_params, ik_err = cached
         else:
             valid = np.isfinite(gt).all(axis=(1, 2))
             if not valid[0]:
@@ -190,11 +249,11 @@ def prepare_track(sequence_path: str | Path, config: TrackConfig, out_dir: Path 
             ik_params = np.full((len(gt), model.n_params), np.nan)
             ik_err = np.full((len(gt), 15), np.nan)
             ik_params[valid], ik_err[valid] = ik.params, ik.joint_error_mm
-            if ik_file is not None:
+            if out_dir is not None:
                 out_dir.mkdir(parents=True, exist_ok=True)
-                _atomic_savez(ik_file, params=ik_params, joint_error_mm=ik_err, frame_indices=frames)
                 subject.save(out_dir / "subject.json")
-        algo = config.optimizer(model)
+                _atomic_savez(out_dir / "ik.npz", params=ik_params, joint_error_mm=ik_err, frame_indices=frames,
+                              key=np.array(key))
         return TrackSetup(sequence_path=Path(sequence_path), config=config, model=model, frame_indices=frames,
                           frame_times=times, gt_joints=gt, ik_params=ik_params, ik_error_mm=ik_err,
                           world_from_source=np.asarray(seq.world_from_source, dtype=np.float64),
@@ -377,7 +436,8 @@ def config_record(setup: TrackSetup, runs: int) -> dict[str, Any]:
         "fitness_kind": setup.config.fitness_kind,
         "runs": runs,
         "run_seeds": {str(k): [setup.config.seed, k] for k in range(runs)},
-        "sequence": str(setup.sequence_path),
+        "sequence": sequence_location(setup.sequence_path),
+        "sequence_identity": sequence_identity(setup.sequence_path),
         "frames": int(len(setup.frame_indices)),
         "evals_per_frame": setup.evals_per_frame,
         "ik_floor_mm": setup.ik_floor_mm,
