@@ -269,3 +269,62 @@ def test_constant_velocity_centres_the_search_one_step_on(short_sequence, tmp_pa
     resumed = run_tracker(prepare_track(short_sequence, cfg, tmp_path), 0, tmp_path, resume=True)
     assert np.array_equal(resumed.params, full.params)
     assert json.loads((tmp_path / "run_000" / "summary.json").read_text())["d_mean"] == full.errors["d_mean"]
+
+
+def test_sequence_identity_ignores_time_version_and_paths_but_not_the_data(short_sequence, tmp_path):
+    import shutil
+
+    from swarmpose.track.tracker import sequence_identity
+
+    copy = tmp_path / "moved"
+    shutil.copytree(short_sequence, copy)
+    meta = json.loads((copy / "sequence.json").read_text())
+    meta["provenance"]["created_utc"] = "2030-01-01T00:00:00+00:00"  # synthesised again, elsewhere
+    meta["provenance"]["swarmpose_version"] = "9.9"
+    meta["provenance"]["clip"]["path"] = "/elsewhere/clip.bvh"
+    meta["source_clip"] = "/elsewhere/clip.bvh"
+    (copy / "sequence.json").write_text(json.dumps(meta, indent=3))
+    assert sequence_identity(copy) == sequence_identity(short_sequence)
+    meta["provenance"]["seed"] = meta["provenance"].get("seed", 0) + 1  # other data
+    (copy / "sequence.json").write_text(json.dumps(meta))
+    assert sequence_identity(copy) != sequence_identity(short_sequence)
+    assert sequence_identity("humaneva:/d/S1/Walking_1") == "humaneva:/d/S1/Walking_1"
+
+
+def test_ik_cache_key_and_legacy_files(short_sequence, tmp_path):
+    """A key that differs only in the sequence forces a refit; an ik.npz written before the key
+    existed is still read when its frames and parameter count agree."""
+    cfg = TrackConfig(fps=20.0)
+    first = prepare_track(short_sequence, cfg, tmp_path)
+    with np.load(tmp_path / "ik.npz", allow_pickle=False) as z:
+        arrays = {k: z[k] for k in z.files}
+    marked = arrays["params"].copy()
+    marked[0, 0] += 0.5  # recognisable if read back
+    np.savez(tmp_path / "ik.npz", **{**arrays, "params": marked, "key": np.array("another sequence")})
+    np.testing.assert_array_equal(prepare_track(short_sequence, cfg, tmp_path).ik_params, first.ik_params)
+    legacy = {k: v for k, v in arrays.items() if k != "key"}
+    np.savez(tmp_path / "ik.npz", **{**legacy, "params": marked})
+    np.testing.assert_array_equal(prepare_track(short_sequence, cfg, tmp_path).ik_params, marked)
+
+
+def test_unknown_edge_cones_fail_before_anything_is_written(short_sequence, tmp_path):
+    from swarmpose.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="edge cone set"):
+        track_runs(short_sequence, TrackConfig(fitness_options="edge_cones=nosuch"), 1, tmp_path / "r",
+                   workers=1, progress=False)
+    assert not (tmp_path / "r" / "config.json").exists() and not list((tmp_path / "r").glob("run_*"))
+
+
+def test_a_suite_refuses_two_sequences_that_would_share_a_folder(short_sequence, tmp_path):
+    import shutil
+
+    from swarmpose.errors import ConfigError
+    from swarmpose.experiments.run import run_suite
+
+    a, b = tmp_path / "a" / "walk", tmp_path / "b" / "walk"
+    shutil.copytree(short_sequence, a)
+    shutil.copytree(short_sequence, b)
+    with pytest.raises(ConfigError, match="would share the results folder"):
+        run_suite("thesis-apf", [a, b], tmp_path / "out", runs=1, workers=1, progress=False)
+    assert not list((tmp_path / "out").rglob("config.json"))

@@ -39,9 +39,9 @@ def demo(
         raise FileNotFoundError(f"demo clip {clip} not found{where}")
     seq = resolve_sequence(clip, progress=not json_out)
     config = TrackConfig(algo=algo, fps=fps, seed=seed)
-    if (out / "summary.json").is_file():
+    if (out / "summary.json").is_file() and _finished_runs(out) >= runs:
         summary = _reuse(out, seq, config, runs)
-    else:
+    else:  # a fresh demo, an interrupted one (resumed) or more runs than a finished one (added)
         summary = track_runs(seq, config, runs, out, resume=(out / "config.json").is_file(), progress=not json_out)
     paths = make_report(out, overlay_frames=4)
     data = {**summary, "report": str(paths.summary), "figures": [str(p) for p in paths.figures],
@@ -65,12 +65,16 @@ def _reuse(out: Path, sequence, config, runs: int) -> dict:
 
     from swarmpose.track.runner import check_results_folder
 
-    check_results_folder(out, sequence, config, runs, resume=True)  # other settings: refused, named
+    check_results_folder(out, sequence, config, runs, resume=True)  # other settings, fewer runs: refused, named
     summary = json.loads((out / "summary.json").read_text())
-    if summary.get("runs") != runs:
-        from swarmpose.errors import ConfigError
-
-        raise ConfigError(f"{out} holds a finished demo of {summary.get('runs')} runs, not {runs}: delete the "
-                          "folder or pass another --out")
     err_console.print(f"[yellow]{out}/summary.json exists: reusing the tracked runs (delete the folder to redo)[/yellow]")
     return summary
+
+
+def _finished_runs(out: Path) -> int:
+    import json
+
+    try:
+        return int(json.loads((out / "summary.json").read_text()).get("runs", 0))
+    except (OSError, ValueError, TypeError):
+        return 0

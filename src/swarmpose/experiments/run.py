@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 
+from swarmpose.errors import ConfigError
 from swarmpose.experiments.suites import Entry, suite
 from swarmpose.metrics import aggregate_runs
 from swarmpose.track.runner import Job, check_results_folder, errors_from_summary, run_jobs
@@ -21,6 +22,14 @@ def _slug(text: str) -> str:
     return "".join(c if c.isalnum() or c in "-." else "_" for c in text).strip("_")
 
 
+def _sequence_name(seq: Any) -> str:
+    """The folder name of a sequence, or a dataset spec's short name (``S1_Walking_1``)."""
+    from swarmpose.datasets import dataset_sequence_name
+
+    text = str(seq)
+    return dataset_sequence_name(text) if text.startswith(("humaneva:", "leewalk:")) else Path(text).name
+
+
 def run_suite(name: str, sequences: list[Path], out_dir: Path, *, runs: int = 5, seed: int = 0,
               workers: int | None = None, scheduler: str | None = None, resume: bool = False,
               downsample: int = 1, progress: bool = True) -> dict[str, Any]:
@@ -30,17 +39,23 @@ def run_suite(name: str, sequences: list[Path], out_dir: Path, *, runs: int = 5,
     out_dir.mkdir(parents=True, exist_ok=True)
     jobs: list[Job] = []
     cells: list[tuple[Entry, Path, Path, Any]] = []
-    for seq in sequences:
+    planned: dict[Path, tuple[Any, Entry, TrackConfig]] = {}
+    for seq in sequences:  # every cell checked before any is written
         for e in entries:
             cfg = TrackConfig(algo=e.algo, fps=e.fps, fitness=e.fitness, seed=seed, downsample=downsample,
                               optim_variant=e.variant, fitness_options=e.fitness_options)
-            cell = out_dir / _slug(Path(seq).name) / _slug(e.label)
+            cell = out_dir / _slug(_sequence_name(seq)) / _slug(e.label)
+            if cell in planned:
+                raise ConfigError(f"two sequences would share the results folder {cell}: {planned[cell][0]} and "
+                                  f"{seq} (give clips with different names)")
             check_results_folder(cell, seq, cfg, runs, resume)  # other settings in the cell: refused, named
-            setup = prepare_track(seq, cfg, cell)  # IK floor once per cell, before the workers start
-            cell.mkdir(parents=True, exist_ok=True)
-            (cell / "config.json").write_text(json.dumps(config_record(setup, runs), indent=1) + "\n")
-            cells.append((e, Path(seq), cell, setup))
-            jobs += [Job(str(seq), asdict(cfg), k, str(cell), resume) for k in range(runs)]
+            planned[cell] = (seq, e, cfg)
+    for cell, (seq, e, cfg) in planned.items():
+        setup = prepare_track(seq, cfg, cell)  # IK floor once per cell, before the workers start
+        cell.mkdir(parents=True, exist_ok=True)
+        (cell / "config.json").write_text(json.dumps(config_record(setup, runs), indent=1) + "\n")
+        cells.append((e, Path(seq), cell, setup))
+        jobs += [Job(str(seq), asdict(cfg), k, str(cell), resume) for k in range(runs)]
     results = run_jobs(jobs, workers=workers, scheduler=scheduler, progress=progress)
     rows = []
     for e, seq, cell, setup in cells:

@@ -119,9 +119,12 @@ def make_report(
     Notes
     -----
     Overlays and video need the sequence's images; when the sequence cannot be found they are
-    skipped with a note (in ``ReportPaths.notes`` and in ``summary.md``) and the rest is written.
+    skipped with a note (in ``ReportPaths.notes`` and in ``summary.md``) and the rest is written;
+    a ``sequence`` given explicitly that is not the tracked sequence raises :class:`DataError`.
     """
     res = results_dir if isinstance(results_dir, Results) else load_results(results_dir)
+    if sequence is not None and (overlay_frames > 0 or video):
+        res.sequence_path(sequence)  # a wrong folder the user named is an error, before anything is drawn
     out = Path(out_dir) if out_dir is not None else res.path / "report"
     out.mkdir(parents=True, exist_ok=True)
     figures = [error_over_time(res, out=out / "error_over_time.png"),
@@ -134,8 +137,6 @@ def make_report(
             res.sequence_path(sequence)
             _ = res.model
         except DataError as exc:
-            if sequence is not None:
-                raise  # the folder the user named is wrong: an error, not a note
             notes.append(f"overlays skipped: {exc}")
         else:
             if overlay_frames > 0:

@@ -79,7 +79,7 @@ def run_jobs(jobs: Sequence[Job], *, workers: int | None = None, scheduler: str 
 
         try:
             client = Client(scheduler)
-        except (OSError, TimeoutError) as exc:
+        except (OSError, TimeoutError, ValueError) as exc:
             from swarmpose.errors import ConfigError
 
             raise ConfigError(f"cannot reach the Dask scheduler at {scheduler!r}: {exc}") from None
@@ -122,15 +122,16 @@ def check_results_folder(out_dir: Path, sequence: str | Path, config: TrackConfi
     added: runs are independent).
     """
     from swarmpose.errors import ConfigError
-    from swarmpose.track.tracker import sequence_identity
+    from swarmpose.track.tracker import model_identity, sequence_identity, sequence_location
 
     cfg_file = out_dir / "config.json"
-    started = sorted(p.parent.name for p in out_dir.glob("run_*/*.npz"))
+    started = sorted({p.parent.name for p in out_dir.glob("run_*/*.npz")})
     if not resume:
         if started or (out_dir / "summary.json").is_file():
             state = "finished" if (out_dir / "summary.json").is_file() else "unfinished"
-            raise ConfigError(f"{out_dir} already holds {state} tracking results ({', '.join(sorted(set(started)))}"
-                              "): pass --resume to continue them with the same settings, or choose another --out")
+            which = f" ({', '.join(started)})" if started else ""
+            raise ConfigError(f"{out_dir} already holds {state} tracking results{which}: pass --resume to continue "
+                              "them with the same settings, or choose another --out")
         return
     if not cfg_file.is_file():
         return  # nothing to resume yet: a fresh start
@@ -142,14 +143,24 @@ def check_results_folder(out_dir: Path, sequence: str | Path, config: TrackConfi
     # "auto" may resolve differently in another version (AAPSO: markers -> reprojection)
     if old.get("fitness_kind", config.fitness_kind) != config.fitness_kind:
         differ.append(f"fitness_kind: {old['fitness_kind']!r} there, {config.fitness_kind!r} now")
+    here = sequence_location(sequence)
     if "sequence_identity" in old:
-        if old["sequence_identity"] != sequence_identity(sequence):
-            differ.append(f"sequence: {old.get('sequence')} there, {sequence} now")
-    elif Path(str(old.get("sequence", ""))).is_dir() and Path(str(sequence)).is_dir() and \
-            Path(old["sequence"]).resolve() != Path(str(sequence)).resolve():
-        differ.append(f"sequence: {old['sequence']} there, {sequence} now")
+        same_sequence = old["sequence_identity"] == sequence_identity(sequence)
+    else:  # written before the fingerprint: the same folder, or the same folder name (cache names carry a hash)
+        then = str(old.get("sequence", ""))
+        if Path(then).is_dir() and Path(str(sequence)).is_dir():
+            same_sequence = Path(then).resolve() == Path(str(sequence)).resolve()
+        elif then.startswith(("humaneva:", "leewalk:")) or here.startswith(("humaneva:", "leewalk:")):
+            same_sequence = then == here
+        else:
+            same_sequence = Path(then).name == Path(here).name
+    if not same_sequence:
+        differ.append(f"sequence: {old.get('sequence')} there, {here} now (not the same data)")
+    if "model_spec_sha1" in old and old["model_spec_sha1"] != model_identity(config.model):
+        differ.append(f"body model: the spec {config.model!r} has changed since")
     if differ:
-        raise ConfigError(f"{cfg_file}: the runs being resumed used other settings ({'; '.join(differ)})")
+        raise ConfigError(f"{cfg_file}: the runs being resumed used other settings ({'; '.join(differ)}); "
+                          "use another --out for the new settings")
     if isinstance(old.get("runs"), int) and runs < old["runs"]:
         raise ConfigError(f"{cfg_file}: the folder holds {old['runs']} runs; resuming with --runs {runs} would "
                           f"leave runs {runs}..{old['runs'] - 1} out of the summary (pass --runs {old['runs']} "

@@ -38,7 +38,8 @@ from swarmpose.errors import ConfigError, DataError
 from swarmpose.metrics import track_errors
 from swarmpose.track.motion import parse_motion
 
-__all__ = ["TrackConfig", "RunResult", "prepare_track", "run_tracker", "TrackSetup", "versions"]
+__all__ = ["TrackConfig", "RunResult", "prepare_track", "run_tracker", "TrackSetup", "versions", "model_identity",
+           "sequence_identity", "sequence_location"]
 
 IMAGE_FITNESS = ("silhouette_edge", "deutscher_reid")
 MARKER_FITNESS = ("markers", "reprojection")
@@ -173,13 +174,44 @@ def _subject_for(seq: Any, spec) -> Subject:
                                measurements=measurements)
 
 
+#: Fields of ``sequence.json`` that change when the same data is synthesised again (time, version, paths).
+_VOLATILE_SEQUENCE_FIELDS = (("source_clip",), ("provenance", "created_utc"), ("provenance", "swarmpose_version"),
+                             ("provenance", "clip", "path"))
+
+
 def sequence_identity(sequence_path: str | Path) -> str:
-    """What identifies a sequence across moves of its folder: a hash of its ``sequence.json`` (our
-    sequence folders; it records the source clip and every synthesis setting), else the dataset spec."""
+    """What identifies a sequence's data across moves and re-synthesis of its folder: a hash of its
+    ``sequence.json`` (the source clip's sha256 and every synthesis setting) without the creation time,
+    version and paths; for a dataset spec (``humaneva:...``) the spec itself."""
     meta = Path(str(sequence_path)) / "sequence.json"
-    if meta.is_file():
+    if not meta.is_file():
+        return str(sequence_path)
+    try:
+        data = json.loads(meta.read_text())
+    except (OSError, ValueError):
         return "sequence.json sha1 " + hashlib.sha1(meta.read_bytes()).hexdigest()[:16]
-    return str(sequence_path)
+    for path in _VOLATILE_SEQUENCE_FIELDS:
+        node = data
+        for key in path[:-1]:
+            node = node.get(key, {}) if isinstance(node, dict) else {}
+        if isinstance(node, dict):
+            node.pop(path[-1], None)
+    canonical = json.dumps(data, sort_keys=True, separators=(",", ":"))
+    return "sequence.json sha1 " + hashlib.sha1(canonical.encode()).hexdigest()[:16]
+
+
+def model_identity(model: str) -> str:
+    """A hash of the body model's spec text (a shipped name or a spec file): what the subject and the
+    IK fit depend on, so that a spec edited in place is not mistaken for the old one."""
+    from importlib import resources
+
+    from swarmpose.body.spec import builtin_specs
+
+    if model in builtin_specs():
+        text = (resources.files("swarmpose.models") / f"{model}.json").read_bytes()
+    else:
+        text = Path(model).read_bytes()
+    return hashlib.sha1(text).hexdigest()[:16]
 
 
 def sequence_location(sequence_path: str | Path) -> str:
@@ -194,7 +226,8 @@ def sequence_location(sequence_path: str | Path) -> str:
 def _ik_cache_key(sequence_path: str | Path, config: TrackConfig) -> str:
     """What the cached IK fit (``ik.npz``) and ``subject.json`` of a results folder depend on."""
     return json.dumps({"sequence": sequence_identity(sequence_path), "model": config.model,
-                       "variant": config.variant, "fps": config.fps}, sort_keys=True)
+                       "model_spec_sha1": model_identity(config.model), "variant": config.variant,
+                       "fps": config.fps}, sort_keys=True)
 
 
 def _read_ik_cache(out_dir: Path | None, key: str, frames: np.ndarray, n_params: int):
@@ -212,6 +245,12 @@ def _read_ik_cache(out_dir: Path | None, key: str, frames: np.ndarray, n_params:
         if z["params"].shape != (len(frames), n_params):
             return None
         return z["params"], z["joint_error_mm"]
+
+
+def _user_fitness_options(config: TrackConfig) -> dict[str, Any]:
+    from swarmpose.experiments.suites import parse_fitness_options
+
+    return parse_fitness_options(config.fitness_options)
 
 
 def prepare_track(sequence_path: str | Path, config: TrackConfig, out_dir: Path | None = None) -> TrackSetup:
@@ -238,6 +277,11 @@ def prepare_track(sequence_path: str | Path, config: TrackConfig, out_dir: Path 
         model = BodyModel(spec, subject, config.variant)
         parse_motion(config.motion).mask(model)  # unknown parameter groups fail here, before any run
         algo = config.optimizer(model)  # unknown algorithm or variant: before the IK fit is written
+        cones = _user_fitness_options(config).get("edge_cones")
+        if cones is not None:
+            from swarmpose.render import edge_cone_mask
+
+            edge_cone_mask(model.cone_arrays.names, cones)  # an unknown cone set fails here, not in a worker
         if cached is not None:
             ik_params, ik_err = cached
         else:
@@ -438,6 +482,7 @@ def config_record(setup: TrackSetup, runs: int) -> dict[str, Any]:
         "run_seeds": {str(k): [setup.config.seed, k] for k in range(runs)},
         "sequence": sequence_location(setup.sequence_path),
         "sequence_identity": sequence_identity(setup.sequence_path),
+        "model_spec_sha1": model_identity(setup.config.model),
         "frames": int(len(setup.frame_indices)),
         "evals_per_frame": setup.evals_per_frame,
         "ik_floor_mm": setup.ik_floor_mm,
