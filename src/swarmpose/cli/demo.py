@@ -30,7 +30,7 @@ def demo(
     per-joint plot, overlay images and summary.md into OUT/report/.
     """
     from swarmpose.report import make_report
-    from swarmpose.track.runner import resolve_sequence, track_runs
+    from swarmpose.track.runner import check_results_folder, resolve_sequence, track_runs
     from swarmpose.track.tracker import TrackConfig
 
     if not Path(clip).is_file():
@@ -39,8 +39,11 @@ def demo(
         raise FileNotFoundError(f"demo clip {clip} not found{where}")
     seq = resolve_sequence(clip, progress=not json_out)
     config = TrackConfig(algo=algo, fps=fps, seed=seed)
-    if (out / "summary.json").is_file() and _finished_runs(out) >= runs:
-        summary = _reuse(out, seq, config, runs)
+    summary = _finished(out)
+    if summary is not None and summary.get("runs", 0) >= runs:
+        check_results_folder(out, seq, config, runs, resume=True)  # other settings, fewer runs: refused, named
+        err_console.print(f"[yellow]{out}/summary.json exists: reusing the tracked runs (delete the folder to "
+                          "redo)[/yellow]")
     else:  # a fresh demo, an interrupted one (resumed) or more runs than a finished one (added)
         summary = track_runs(seq, config, runs, out, resume=(out / "config.json").is_file(), progress=not json_out)
     paths = make_report(out, overlay_frames=4)
@@ -59,22 +62,11 @@ def demo(
         console.print(f"    {p}")
 
 
-def _reuse(out: Path, sequence, config, runs: int) -> dict:
-    """The finished demo in ``out`` when it was tracked with these settings; otherwise a clear error."""
-    import json
-
-    from swarmpose.track.runner import check_results_folder
-
-    check_results_folder(out, sequence, config, runs, resume=True)  # other settings, fewer runs: refused, named
-    summary = json.loads((out / "summary.json").read_text())
-    err_console.print(f"[yellow]{out}/summary.json exists: reusing the tracked runs (delete the folder to redo)[/yellow]")
-    return summary
-
-
-def _finished_runs(out: Path) -> int:
+def _finished(out: Path) -> dict | None:
+    """The summary of a finished demo in ``out``, if there is a readable one."""
     import json
 
     try:
-        return int(json.loads((out / "summary.json").read_text()).get("runs", 0))
-    except (OSError, ValueError, TypeError):
-        return 0
+        return json.loads((out / "summary.json").read_text())
+    except (OSError, ValueError):
+        return None

@@ -24,10 +24,9 @@ def _slug(text: str) -> str:
 
 def _sequence_name(seq: Any) -> str:
     """The folder name of a sequence, or a dataset spec's short name (``S1_Walking_1``)."""
-    from swarmpose.datasets import dataset_sequence_name
+    from swarmpose.datasets import dataset_sequence_name, is_dataset_spec
 
-    text = str(seq)
-    return dataset_sequence_name(text) if text.startswith(("humaneva:", "leewalk:")) else Path(text).name
+    return dataset_sequence_name(seq) if is_dataset_spec(seq) else Path(str(seq)).name
 
 
 def run_suite(name: str, sequences: list[Path], out_dir: Path, *, runs: int = 5, seed: int = 0,

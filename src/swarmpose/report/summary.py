@@ -78,22 +78,27 @@ def _table(header: Sequence[str], rows: Sequence[Sequence[str]], align: str | No
     return out
 
 
-#: ``config.json`` keys that are ``swarmpose track`` options, with their defaults (left out when default).
-_TRACK_OPTIONS = (("fps", "--fps", None), ("runs", "--runs", None), ("seed", "--seed", None),
-                  ("model", "--model", "balan31"), ("fitness", "--fitness", "auto"),
-                  ("optim_variant", "--variant", ""), ("fitness_options", "--fitness-options", ""),
-                  ("feature_options", "--features", ""), ("motion", "--motion", "zero-velocity"),
-                  ("downsample", "--downsample", 1), ("backend", "--backend", "numba"))
+#: ``config.json`` keys that are ``swarmpose track`` options; fps, runs and seed are always written.
+_TRACK_OPTIONS = (("fps", "--fps"), ("runs", "--runs"), ("seed", "--seed"), ("model", "--model"),
+                  ("fitness", "--fitness"), ("optim_variant", "--variant"), ("fitness_options", "--fitness-options"),
+                  ("feature_options", "--features"), ("motion", "--motion"), ("downsample", "--downsample"),
+                  ("backend", "--backend"))
+_ALWAYS = ("fps", "runs", "seed")
 
 
 def _reproduce(cfg: dict[str, Any]) -> str | None:
     """The ``swarmpose track`` command line that repeats the run, every non-default setting included."""
+    from dataclasses import asdict
+
+    from swarmpose.track.tracker import TrackConfig
+
     if not cfg.get("sequence") or not cfg.get("algo"):
         return None
+    defaults = asdict(TrackConfig())
     parts = ["swarmpose track", shlex.quote(str(cfg["sequence"])), f"--algo {shlex.quote(str(cfg['algo']))}"]
-    for key, opt, default in _TRACK_OPTIONS:
+    for key, opt in _TRACK_OPTIONS:
         v = cfg.get(key)
-        if v is None or v == default:
+        if v is None or (key not in _ALWAYS and v == defaults[key]):
             continue
         parts.append(f"{opt} {v:g}" if isinstance(v, float) else f"{opt} {shlex.quote(str(v))}")
     return " ".join(parts)

@@ -20,7 +20,15 @@ from typing import Any
 import numpy as np
 
 from swarmpose.metrics import TrackErrors, aggregate_runs
-from swarmpose.track.tracker import TrackConfig, config_record, prepare_track, run_tracker, sequence_location
+from swarmpose.track.tracker import (
+    TrackConfig,
+    config_record,
+    model_identity,
+    prepare_track,
+    run_tracker,
+    sequence_identity,
+    sequence_location,
+)
 
 __all__ = ["Job", "check_results_folder", "errors_from_summary", "resolve_sequence", "run_job", "run_jobs",
            "track_runs"]
@@ -121,8 +129,8 @@ def check_results_folder(out_dir: Path, sequence: str | Path, config: TrackConfi
     ``config.json`` must name the same sequence and settings, and at least as many runs (more may be
     added: runs are independent).
     """
+    from swarmpose.datasets import is_dataset_spec
     from swarmpose.errors import ConfigError
-    from swarmpose.track.tracker import model_identity, sequence_identity, sequence_location
 
     cfg_file = out_dir / "config.json"
     started = sorted({p.parent.name for p in out_dir.glob("run_*/*.npz")})
@@ -150,7 +158,7 @@ def check_results_folder(out_dir: Path, sequence: str | Path, config: TrackConfi
         then = str(old.get("sequence", ""))
         if Path(then).is_dir() and Path(str(sequence)).is_dir():
             same_sequence = Path(then).resolve() == Path(str(sequence)).resolve()
-        elif then.startswith(("humaneva:", "leewalk:")) or here.startswith(("humaneva:", "leewalk:")):
+        elif is_dataset_spec(then) or is_dataset_spec(here):
             same_sequence = then == here
         else:
             same_sequence = Path(then).name == Path(here).name

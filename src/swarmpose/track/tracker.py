@@ -217,10 +217,9 @@ def model_identity(model: str) -> str:
 def sequence_location(sequence_path: str | Path) -> str:
     """The sequence as recorded in ``config.json``: an absolute folder path (so that ``report`` finds it
     from any working directory), or a dataset spec (``humaneva:...``) as given."""
-    text = str(sequence_path)
-    if text.startswith(("humaneva:", "leewalk:")):
-        return text
-    return str(Path(text).resolve())
+    from swarmpose.datasets import is_dataset_spec
+
+    return str(sequence_path) if is_dataset_spec(sequence_path) else str(Path(str(sequence_path)).resolve())
 
 
 def _ik_cache_key(sequence_path: str | Path, config: TrackConfig) -> str:
@@ -247,12 +246,6 @@ def _read_ik_cache(out_dir: Path | None, key: str, frames: np.ndarray, n_params:
         return z["params"], z["joint_error_mm"]
 
 
-def _user_fitness_options(config: TrackConfig) -> dict[str, Any]:
-    from swarmpose.experiments.suites import parse_fitness_options
-
-    return parse_fitness_options(config.fitness_options)
-
-
 def prepare_track(sequence_path: str | Path, config: TrackConfig, out_dir: Path | None = None) -> TrackSetup:
     """Load the sequence's metadata, build the subject's model and fit the IK floor (cached in out_dir).
 
@@ -277,7 +270,9 @@ def prepare_track(sequence_path: str | Path, config: TrackConfig, out_dir: Path 
         model = BodyModel(spec, subject, config.variant)
         parse_motion(config.motion).mask(model)  # unknown parameter groups fail here, before any run
         algo = config.optimizer(model)  # unknown algorithm or variant: before the IK fit is written
-        cones = _user_fitness_options(config).get("edge_cones")
+        from swarmpose.experiments.suites import parse_fitness_options
+
+        cones = parse_fitness_options(config.fitness_options).get("edge_cones")
         if cones is not None:
             from swarmpose.render import edge_cone_mask
 
