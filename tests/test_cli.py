@@ -29,3 +29,32 @@ def test_ik_reports_the_file_it_wrote(mocap_dir: Path, tmp_path: Path):
 def test_help_keeps_the_bracketed_forms():
     text = " ".join(CliRunner().invoke(app, ["track", "--help"], env={"COLUMNS": "250"}).output.split())
     assert "SeedSequence([seed, k])" in text and "constant-velocity[:D][@GROUP+...]" in text
+
+
+def test_errors_under_json_print_one_error_object(tmp_path: Path):
+    """--json promises one JSON object on stdout: a failing command prints {"error", "exit_code"} there
+    (and the message on stderr); without --json stdout stays empty."""
+    runner = CliRunner()
+    missing = tmp_path / "none.bvh"
+    for args in (["info", str(missing)], ["report", str(tmp_path)]):
+        res = runner.invoke(app, [*args, "--json"])
+        assert res.exit_code == 2, res.output
+        data = json.loads(res.stdout)
+        assert set(data) == {"error", "exit_code"} and data["exit_code"] == 2
+        assert str(tmp_path) in data["error"] and "error:" in res.stderr
+        plain = runner.invoke(app, args)
+        assert plain.exit_code == 2 and plain.stdout == ""
+
+
+def test_info_warns_about_an_implausible_unit(mocap_dir: Path):
+    """--unit m on a CMU clip (about 25 units tall) makes a 25 m person: info says so."""
+    clip = str(mocap_dir / "cmu_16_16_walk.bvh")
+    runner = CliRunner()
+    ok = json.loads(runner.invoke(app, ["info", clip, "--json"]).stdout)
+    assert 1300 < ok["rest_height_mm"] < 1600 and ok["warnings"] == []
+    bad = runner.invoke(app, ["info", clip, "--unit", "m", "--json"])
+    assert bad.exit_code == 0
+    data = json.loads(bad.stdout)
+    assert data["rest_height_mm"] > 20_000 and "is --unit right?" in data["warnings"][0]
+    plain = runner.invoke(app, ["info", clip, "--unit", "m"])
+    assert "not a person's height" in " ".join(plain.stderr.split())

@@ -34,10 +34,12 @@ def _back_to_world(path: Path, y_up: bool, scale: float = 1.0):
 @pytest.mark.parametrize("model_name", ["balan31", "full45"])
 @pytest.mark.parametrize("y_up", [True, False])
 @pytest.mark.parametrize("order", ["ZXY", "XYZ", "model"])
-def test_round_trip_positions(tmp_path: Path, model_name: str, y_up: bool, order: str):
+@pytest.mark.parametrize("rest_facing", ["+z", "+x"])
+def test_round_trip_positions(tmp_path: Path, model_name: str, y_up: bool, order: str, rest_facing: str):
     model = load_model(model_name)
     P = random_valid_poses(model, 12, seed=len(order) + y_up)
-    path = export_bvh(model, P, 60.0, tmp_path / "m.bvh", y_up=y_up, rotation_order=order)
+    path = export_bvh(model, P, 60.0, tmp_path / "m.bvh", y_up=y_up, rotation_order=order,
+                      rest_facing=rest_facing)
     clip, world = _back_to_world(path, y_up)
     assert clip.frames == 12
     names = model.spec.joint_names
@@ -68,6 +70,42 @@ def test_header_and_units(tmp_path: Path):
     # offsets are the subject's measurements, in the file's axes (Y up: (x, z, -y))
     thigh = read_bvh(p60).joints[read_bvh(p60).joint_index("l_knee")].offset
     np.testing.assert_allclose(thigh, bvh_axes(True) @ np.asarray(model.subject.offsets["l_thigh"]), atol=1e-6)
+
+
+def _rest_positions(clip) -> np.ndarray:
+    """Joint positions with every channel zero: the offsets summed down the tree."""
+    rest = np.zeros((len(clip.joints), 3))
+    for j, joint in enumerate(clip.joints):
+        p = int(clip.parents[j])
+        rest[j] = (rest[p] if p >= 0 else 0.0) + np.asarray(joint.offset)
+    return rest
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.linalg.norm(v)
+
+
+@pytest.mark.parametrize("model_name", ["balan31", "full45"])
+def test_rest_pose_faces_plus_z(tmp_path: Path, model_name: str):
+    """All channels zero: Y up and the subject's left on +X, so (right-handed) facing +Z, as tools expect."""
+    model = load_model(model_name)
+    P = random_valid_poses(model, 2)
+    clip = read_bvh(export_bvh(model, P, 60.0, tmp_path / "m.bvh"))
+    rest = _rest_positions(clip)
+
+    def at(name: str) -> np.ndarray:
+        return rest[clip.joint_index(name)]
+
+    assert _unit(at("l_hip") - at("r_hip"))[0] > 0.99  # left on +X
+    assert _unit(at("head_top") - at("pelvis"))[1] > 0.95  # up on +Y
+    if "l_toe" in clip.joint_names:
+        assert _unit(at("l_toe") - at("l_ankle"))[2] > 0.6  # the feet point to +Z
+    # --rest-facing +x keeps the model's own zero pose, which faces +X (left on -Z)
+    old = read_bvh(export_bvh(model, P, 60.0, tmp_path / "x.bvh", rest_facing="+x"))
+    rest_x = _rest_positions(old)
+    assert -_unit(rest_x[old.joint_index("l_hip")] - rest_x[old.joint_index("r_hip")])[2] > 0.99
+    with pytest.raises(ConfigError, match="rest facing"):
+        export_bvh(model, P, 60.0, tmp_path / "bad.bvh", rest_facing="-y")
 
 
 def test_angles_are_continuous(tmp_path: Path):

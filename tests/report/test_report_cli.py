@@ -54,8 +54,11 @@ def test_export_json_round_trip(fake_results, tmp_path: Path):
     names = res.model.spec.joint_names
     idx = [clip.joint_names.index(n) for n in names]
     np.testing.assert_allclose(world[:, idx], res.model.joint_positions(res.run(1).params), atol=1e-3)
+    assert data["rest_facing"] == "+z"
     missing = CliRunner().invoke(app, ["export", str(fake_results[0]), "--run", "7", "--out", str(bvh)])
     assert missing.exit_code == 2 and "no finished run 7" in " ".join(missing.output.split())
+    bad = CliRunner().invoke(app, ["export", str(fake_results[0]), "--out", str(bvh), "--rest-facing", "up"])
+    assert bad.exit_code == 2 and "--rest-facing must be one of +z, +x" in " ".join(bad.output.split())
 
 
 def test_output_paths_a_user_gets_wrong_are_handled(fake_results, tmp_path: Path):

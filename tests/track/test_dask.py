@@ -30,3 +30,20 @@ def test_dask_cluster_gives_the_same_runs_as_local_processes(short_sequence, tmp
         sa = json.loads((tmp_path / "local" / f"run_{k:03d}" / "summary.json").read_text())
         sb = json.loads((tmp_path / "dask" / f"run_{k:03d}" / "summary.json").read_text())
         assert sa["d_mean"] == sb["d_mean"]
+
+
+def test_unreachable_scheduler_fails_before_the_ik_fit(short_sequence, tmp_path, monkeypatch):
+    """A wrong --scheduler is refused in seconds, before the (slow) IK fit and before anything is written."""
+    from swarmpose.errors import ConfigError
+    from swarmpose.track import runner
+
+    def no_ik(*a, **k):
+        raise AssertionError("prepare_track reached with an unreachable scheduler")
+
+    connect = runner.connect_scheduler
+    monkeypatch.setattr(runner, "prepare_track", no_ik)
+    monkeypatch.setattr(runner, "connect_scheduler", lambda address: connect(address, timeout_s=2.0))
+    with pytest.raises(ConfigError, match="cannot reach the Dask scheduler at 'tcp://127.0.0.1:1'"):
+        track_runs(short_sequence, TrackConfig(algo="sppso", fps=30.0), 1, tmp_path / "r",
+                   scheduler="tcp://127.0.0.1:1", progress=False)
+    assert not (tmp_path / "r").exists()

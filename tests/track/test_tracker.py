@@ -220,7 +220,9 @@ def test_track_variant_option(short_sequence, tmp_path):
     assert json.loads((tmp_path / "r" / "config.json").read_text())["optim_variant"] == "apf=100x3"
     res = runner.invoke(app, ["track", str(short_sequence), "--algo", "sppso", "--variant", "apf=100x3",
                               "--fps", "20", "--workers", "1", "--out", str(tmp_path / "bad"), "--json"])
-    assert res.exit_code == 2 and "annealed particle filter" in res.stderr and res.stdout == ""
+    assert res.exit_code == 2 and "annealed particle filter" in res.stderr
+    assert json.loads(res.stdout) == {"error": "variant 'apf=100x3' needs an annealed particle filter, "
+                                               "'sppso' is not one", "exit_code": 2}  # one object, as --json says
 
 
 @pytest.mark.parametrize("algo", ["sppso", "apf"])

@@ -20,12 +20,17 @@ def info(
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object instead of a table."),
 ) -> None:
     """Show a clip's frames, frame rate, duration, skeleton and unit scale."""
-    from swarmpose.io.mocap import load_clip
+    from swarmpose.io.mocap import load_clip, rest_height
     from swarmpose.joints import JOINTS15
 
     c = load_clip(clip, unit_scale=_unit(unit))
     bvh = c.bvh
     j15 = c.joints
+    height_mm = rest_height(bvh) * float(c.mm_per_unit)
+    warnings = []
+    if not 500.0 <= height_mm <= 2600.0:
+        warnings.append(f"the skeleton stands {height_mm / 1000.0:.2f} m tall in unit {c.unit_name!r}: "
+                        "not a person's height; is --unit right?")
     data = {
         "clip": str(clip),
         "frames": int(bvh.frames),
@@ -42,16 +47,23 @@ def info(
         },
         "pelvis_path_m": float(np.sum(np.linalg.norm(np.diff(j15[:, 1, :2], axis=0), axis=1)) / 1000.0),
         "pelvis_height_mm": {"min": float(j15[:, 1, 2].min()), "max": float(j15[:, 1, 2].max())},
+        "rest_height_mm": height_mm,
+        "warnings": warnings,
     }
     if json_out:
         print_json(data)
         return
     from rich.table import Table
 
+    from swarmpose.cli.common import err_console
+
+    for w in warnings:
+        err_console.print(f"[bold yellow]warning:[/bold yellow] {w}", highlight=False)
+
     console.print(f"[bold]{clip}[/bold]")
     console.print(f"  {data['frames']} frames at {data['frame_rate']:g} fps = {data['duration_s']:.3f} s, "
                   f"{data['joints']} joints / {data['channels']} channels, unit {data['unit']} "
-                  f"({data['mm_per_unit']:.3f} mm per unit)")
+                  f"({data['mm_per_unit']:.3f} mm per unit; the rest pose stands {height_mm:.0f} mm tall)")
     console.print(f"  pelvis travels {data['pelvis_path_m']:.2f} m; height "
                   f"{data['pelvis_height_mm']['min']:.0f}-{data['pelvis_height_mm']['max']:.0f} mm")
     table = Table("joint", "BVH joint", "frame 0 (mm, z up)")

@@ -46,7 +46,11 @@ def print_json(data: Any) -> None:
 
 
 def fail_on_user_error(func: F) -> F:
-    """Turn swarmpose's own errors (bad files, bad options) into a one-line message and exit code 2."""
+    """Turn swarmpose's own errors (bad files, bad options) into a one-line message and exit code 2.
+
+    Under ``--json`` (a ``json_out`` argument that is true) stdout also gets the one JSON object the
+    contract promises, ``{"error": MESSAGE, "exit_code": 2}``, so a script reading stdout sees why.
+    """
 
     @functools.wraps(func)
     def wrapper(*args: Any, **kwargs: Any) -> Any:
@@ -54,6 +58,8 @@ def fail_on_user_error(func: F) -> F:
             return func(*args, **kwargs)
         except (SwarmposeError, FileNotFoundError) as exc:
             err_console.print(f"[bold red]error:[/bold red] {exc}", highlight=False)
+            if kwargs.get("json_out") is True:
+                print_json({"error": str(exc), "exit_code": 2})
             raise typer.Exit(code=2) from None
 
     return wrapper  # type: ignore[return-value]

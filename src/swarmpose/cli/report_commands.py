@@ -67,20 +67,26 @@ def export(
     unit: Annotated[str, typer.Option("--unit", help="Length unit of the file: mm, cm or m.")] = "mm",
     order: Annotated[str, typer.Option("--order", help="Rotation channel order of every joint (ZXY, XYZ, ...), "
                                                        "or 'model' for each joint's own axes.")] = "ZXY",
+    rest_facing: Annotated[str, typer.Option("--rest-facing", help="Where the rest pose (all channels zero) "
+                                             "faces in a Y-up file: +z (what animation tools expect) or +x "
+                                             "(the body model's own zero pose).")] = "+z",
     json_out: Annotated[bool, typer.Option("--json", help="Print one JSON object instead of a line.")] = False,
 ) -> None:
     """Export a run's tracked motion as a BVH file that animation tools (Blender, MotionBuilder) import.
 
     The hierarchy is the body model's joint tree with the subject's limb lengths; the frame rate is
-    the tracking rate. Y up by default: a BVH vector is (x, z, -y) of the swarmpose world (Z up, mm).
+    the tracking rate. Y up by default: a BVH vector is (x, z, -y) of the swarmpose world (Z up, mm),
+    so the joints land where `track` put them, and the rest pose stands facing +Z.
     """
     from swarmpose.errors import ConfigError
-    from swarmpose.export import export_bvh
+    from swarmpose.export import REST_FACINGS, export_bvh
     from swarmpose.report.results import load_results
 
     scales = {"mm": 1.0, "cm": 0.1, "m": 0.001}
     if unit not in scales:
         raise ConfigError(f"--unit must be one of {', '.join(scales)}, got {unit!r}")
+    if rest_facing.lower() not in REST_FACINGS:
+        raise ConfigError(f"--rest-facing must be one of {', '.join(REST_FACINGS)}, got {rest_facing!r}")
     res = load_results(results_dir)
     r = res.run(run)
     if out.is_dir():  # a folder: the file goes into it
@@ -89,10 +95,10 @@ def export(
     if not fps > 0:
         raise ConfigError(f"{results_dir / 'config.json'}: no tracking frame rate ('fps') recorded")
     path = export_bvh(res.model, r.params, fps, out, y_up=not z_up, rotation_order=order,
-                      scale=scales[unit])
+                      scale=scales[unit], rest_facing=rest_facing)
     data = {"bvh": str(path), "run": run, "frames": int(r.params.shape[0]), "frame_rate": float(fps),
             "joints": len(res.model.spec.joints), "axes": "z_up" if z_up else "y_up", "unit": unit,
-            "rotation_order": order}
+            "rotation_order": order, "rest_facing": "+x" if z_up else rest_facing.lower()}
     if json_out:
         print_json(data)
         return

@@ -12,7 +12,7 @@ import numpy as np
 from swarmpose.errors import ConfigError
 from swarmpose.experiments.suites import Entry, suite
 from swarmpose.metrics import aggregate_runs
-from swarmpose.track.runner import Job, check_results_folder, errors_from_summary, run_jobs
+from swarmpose.track.runner import Job, check_results_folder, connect_scheduler, errors_from_summary, run_jobs
 from swarmpose.track.tracker import TrackConfig, config_record, prepare_track
 
 __all__ = ["run_suite", "comparison_table"]
@@ -30,7 +30,7 @@ def _sequence_name(seq: Any) -> str:
 
 
 def run_suite(name: str, sequences: list[Path], out_dir: Path, *, runs: int = 5, seed: int = 0,
-              workers: int | None = None, scheduler: str | None = None, resume: bool = False,
+              workers: int | None = None, scheduler: Any = None, resume: bool = False,
               downsample: int = 1, progress: bool = True) -> dict[str, Any]:
     """Run suite ``name`` on the sequences and write ``out_dir/{comparison.json, comparison.md}``."""
     entries = suite(name)
@@ -49,6 +49,8 @@ def run_suite(name: str, sequences: list[Path], out_dir: Path, *, runs: int = 5,
                                   f"{seq} (give clips with different names)")
             check_results_folder(cell, seq, cfg, runs, resume)  # other settings in the cell: refused, named
             planned[cell] = (seq, e, cfg)
+    if isinstance(scheduler, str):
+        scheduler = connect_scheduler(scheduler)  # before the IK fits: a wrong address fails at once
     for cell, (seq, e, cfg) in planned.items():
         setup = prepare_track(seq, cfg, cell)  # IK floor once per cell, before the workers start
         cell.mkdir(parents=True, exist_ok=True)

@@ -2,6 +2,13 @@
 
 from __future__ import annotations
 
-from swarmpose.export.bvh_export import ROTATION_ORDERS, bvh_axes, euler_from_matrices, export_bvh
+from swarmpose.export.bvh_export import (
+    REST_FACINGS,
+    ROTATION_ORDERS,
+    bvh_axes,
+    euler_from_matrices,
+    export_bvh,
+    rest_rotation,
+)
 
-__all__ = ["ROTATION_ORDERS", "bvh_axes", "euler_from_matrices", "export_bvh"]
+__all__ = ["REST_FACINGS", "ROTATION_ORDERS", "bvh_axes", "euler_from_matrices", "export_bvh", "rest_rotation"]

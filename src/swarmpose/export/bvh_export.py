@@ -17,6 +17,16 @@ which is exactly the inverse of what :func:`swarmpose.io.mocap.load_clip` applie
 so an exported clip loaded back with ``unit="mm"`` lands in the same world. ``y_up=False`` keeps
 the world's axes (Z up).
 
+Rest pose
+---------
+Animation tools expect the rest pose (all channels zero) to stand facing **+Z** with Y up (the
+subject's left along +X), as the CMU files do. The body model's zero pose faces the world's +x,
+which the axes above would put on BVH +X (the character would appear turned by 90 degrees). So by
+default (``rest_facing="+z"``, Y up only) the rest skeleton is laid out turned by ``Q = Ry(-90°)``
+(offsets ``Q A o``), every joint's rotation is conjugated by ``Q`` and the root's carries the
+constant ``Q^T``: the joints still land at ``A p`` in every frame, so the round trip above holds.
+``rest_facing="+x"`` keeps the model's own rest orientation.
+
 Rotations
 ---------
 In the zero pose every model joint frame is aligned with the world, as BVH joint frames are in
@@ -28,7 +38,7 @@ the rest pose (all channels zero). A joint's BVH rotation is its local rotation
 frame is taken and each angle is unwrapped, so the curves are continuous (no 360 degree jumps) for
 animation tools that interpolate them. ``rotation_order="model"`` writes each joint's own
 elementary axes in the model's order instead (the channels then are the model's joint angles,
-with the sign of the axis, and the extra axes are zero).
+with the sign of the axis, and the extra axes are zero; the root's also carry the rest turn of *Rest pose*).
 """
 
 from __future__ import annotations
@@ -41,10 +51,12 @@ import numpy as np
 
 from swarmpose.errors import ConfigError
 
-__all__ = ["export_bvh", "bvh_axes", "euler_from_matrices", "ROTATION_ORDERS"]
+__all__ = ["export_bvh", "bvh_axes", "rest_rotation", "euler_from_matrices", "ROTATION_ORDERS", "REST_FACINGS"]
 
 #: Channel orders accepted by :func:`export_bvh` (besides ``"model"``).
 ROTATION_ORDERS = ("ZXY", "ZYX", "XYZ", "XZY", "YXZ", "YZX")
+#: Rest-pose orientations accepted by :func:`export_bvh`: facing BVH +Z (tools' convention) or the model's +x.
+REST_FACINGS = ("+z", "+x")
 _AX = "XYZ"
 
 
@@ -52,6 +64,20 @@ def bvh_axes(y_up: bool = True) -> np.ndarray:
     """The 3x3 matrix ``A`` with ``bvh = A @ world`` (``(x, z, -y)`` for Y up, identity otherwise)."""
     if y_up:
         return np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
+    return np.eye(3)
+
+
+def rest_rotation(y_up: bool = True, rest_facing: str = "+z") -> np.ndarray:
+    """The 3x3 rotation ``Q`` (in BVH axes) that turns the model's rest pose to face ``rest_facing``.
+
+    ``Ry(-90°)`` (BVH +X to +Z) for Y up and ``"+z"``; the identity for ``"+x"`` or Z up (a Z-up file
+    keeps the world's axes entirely).
+    """
+    facing = str(rest_facing).lower()
+    if facing not in REST_FACINGS:
+        raise ConfigError(f"unknown rest facing {rest_facing!r} (known: {', '.join(REST_FACINGS)})")
+    if y_up and facing == "+z":
+        return np.array([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]])
     return np.eye(3)
 
 
@@ -129,6 +155,7 @@ def export_bvh(
     rotation_order: str = "ZXY",
     scale: float = 1.0,
     decimals: int = 6,
+    rest_facing: str = "+z",
 ) -> Path:
     """Write poses of a body model as a BVH file (see the module docstring for axes and angles).
 
@@ -151,6 +178,9 @@ def export_bvh(
         File units per millimetre (1 = mm, 0.1 = cm, 0.001 = m).
     decimals : int, default 6
         Decimals of the written numbers.
+    rest_facing : {"+z", "+x"}, default "+z"
+        Where the rest pose (all channels zero) faces in a Y-up file: +Z as animation tools expect,
+        or +X, the model's own zero pose. The joint positions of every frame are the same either way.
 
     Returns
     -------
@@ -162,7 +192,7 @@ def export_bvh(
     ShapeError
         ``params`` is not ``(T, D)`` for the model.
     ConfigError
-        Non-positive ``frame_rate`` or ``scale``, no frames, or an unknown rotation order.
+        Non-positive ``frame_rate`` or ``scale``, no frames, an unknown rotation order or rest facing.
 
     Examples
     --------
@@ -183,6 +213,7 @@ def export_bvh(
     if order_all != "model" and order_all.upper() not in ROTATION_ORDERS:
         raise ConfigError(f"unknown rotation order {rotation_order!r} (known: {', '.join(ROTATION_ORDERS)}, model)")
     A = bvh_axes(y_up)
+    B = rest_rotation(y_up, rest_facing) @ A  # rest-pose joint axes in BVH coordinates
     kin = model.kin
     names = model.spec.joint_names
     parents = np.asarray(kin.parents)
@@ -190,7 +221,7 @@ def export_bvh(
     kids = _children(parents)
 
     G = model.forward(P)  # (T, J, 3, 4) world_from_joint
-    Rb = np.einsum("ab,tjbc,dc->tjad", A, G[..., :3], A)  # joint axes in BVH coordinates
+    Rb = np.einsum("ab,tjbc,dc->tjad", A, G[..., :3], B)  # joint axes in BVH coordinates, from the rest pose
     pb = np.einsum("ab,tjb->tja", A, G[..., 3]) * scale
     translated = [j for j in range(J) if parents[j] < 0 or np.any(kin.trans_param[j] >= 0)]
 
@@ -202,7 +233,7 @@ def export_bvh(
         dfs.append(j)
         stack.extend(kids[j][::-1])
 
-    orders = {j: (_model_order(model, j, A) if order_all == "model" else order_all.upper()) for j in range(J)}
+    orders = {j: (_model_order(model, j, B) if order_all == "model" else order_all.upper()) for j in range(J)}
     columns: list[np.ndarray] = []
     channel_names: dict[int, list[str]] = {}
     for j in dfs:
@@ -233,15 +264,15 @@ def export_bvh(
         p = int(parents[j])
         lines.append(f"{ind}{'ROOT' if p < 0 else 'JOINT'} {names[j]}")
         lines.append(f"{ind}{{")
-        off = np.zeros(3) if p < 0 else A @ np.asarray(kin.offsets[j]) * scale
+        off = np.zeros(3) if p < 0 else B @ np.asarray(kin.offsets[j]) * scale
         lines.append(f"{ind}\tOFFSET {vec(off)}")
         lines.append(f"{ind}\tCHANNELS {len(channel_names[j])} {' '.join(channel_names[j])}")
         for c in kids[j]:
             write_joint(c, depth + 1)
         if not kids[j]:
-            bone = A @ np.asarray(kin.offsets[j])
+            bone = B @ np.asarray(kin.offsets[j])
             n = float(np.linalg.norm(bone))
-            direction = bone / n if n > 1e-9 else A @ np.array([0.0, 0.0, 1.0])
+            direction = bone / n if n > 1e-9 else B @ np.array([0.0, 0.0, 1.0])
             length = float(np.clip(0.25 * n, 30.0, 100.0)) if n > 1e-9 else 50.0
             lines.append(f"{ind}\tEnd Site")
             lines.append(f"{ind}\t{{")

@@ -30,7 +30,7 @@ from swarmpose.track.tracker import (
     sequence_location,
 )
 
-__all__ = ["Job", "check_results_folder", "errors_from_summary", "resolve_sequence", "run_job", "run_jobs",
+__all__ = ["Job", "check_results_folder", "connect_scheduler", "errors_from_summary", "resolve_sequence", "run_job", "run_jobs",
            "track_runs"]
 
 
@@ -74,29 +74,44 @@ def run_job(job: Job) -> dict[str, Any]:
     return {"run": job.run, "out_dir": job.out_dir, **res.errors}
 
 
-def run_jobs(jobs: Sequence[Job], *, workers: int | None = None, scheduler: str | None = None,
+def connect_scheduler(address: str, timeout_s: float = 20.0) -> Any:
+    """A ``dask.distributed.Client`` for the scheduler at ``address``; a clear error when it cannot be reached.
+
+    Called before any slow preparation (the IK fit), so a wrong ``--scheduler`` fails in seconds.
+    """
+    from swarmpose.errors import ConfigError
+
+    try:
+        from dask.distributed import Client
+    except ImportError:
+        raise ConfigError("--scheduler needs dask.distributed: pip install 'swarmpose[dask]'") from None
+    try:
+        return Client(address, timeout=f"{timeout_s:g}s")
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise ConfigError(f"cannot reach the Dask scheduler at {address!r}: {exc}") from None
+
+
+def run_jobs(jobs: Sequence[Job], *, workers: int | None = None, scheduler: Any = None,
              progress: bool = True) -> list[dict[str, Any]]:
-    """Run jobs in parallel local processes (default), in-process (``workers=1``) or on Dask."""
+    """Run jobs in parallel local processes (default), in-process (``workers=1``) or on Dask.
+
+    ``scheduler``: a Dask scheduler address, or a client from :func:`connect_scheduler` (closed here).
+    """
     from tqdm import tqdm
 
     results: list[dict[str, Any] | None] = [None] * len(jobs)
-    bar = tqdm(total=len(jobs), desc="runs", unit="run", file=sys.stderr, disable=not progress)
     if scheduler:
-        from dask.distributed import Client
         from dask.distributed import as_completed as dask_completed
 
-        try:
-            client = Client(scheduler)
-        except (OSError, TimeoutError, ValueError) as exc:
-            from swarmpose.errors import ConfigError
-
-            raise ConfigError(f"cannot reach the Dask scheduler at {scheduler!r}: {exc}") from None
+        client = connect_scheduler(scheduler) if isinstance(scheduler, str) else scheduler
+        bar = tqdm(total=len(jobs), desc="runs", unit="run", file=sys.stderr, disable=not progress)
         with client:
             futures = {client.submit(run_job, j, pure=False): i for i, j in enumerate(jobs)}
             for fut in dask_completed(futures):
                 results[futures[fut]] = fut.result()
                 bar.update(1)
     else:
+        bar = tqdm(total=len(jobs), desc="runs", unit="run", file=sys.stderr, disable=not progress)
         cpus = os.cpu_count() or 1
         workers = min(len(jobs), cpus) if workers is None else max(1, workers)
         if workers == 1:
@@ -185,10 +200,12 @@ def _intervals(frame_times: np.ndarray) -> dict[str, float]:
 
 
 def track_runs(sequence: str | Path, config: TrackConfig, runs: int, out_dir: Path, *, resume: bool = False,
-               workers: int | None = None, scheduler: str | None = None, progress: bool = True) -> dict[str, Any]:
+               workers: int | None = None, scheduler: Any = None, progress: bool = True) -> dict[str, Any]:
     """Track ``runs`` runs of one configuration and write ``out_dir`` (config, runs, summary)."""
     out_dir = Path(out_dir)
     check_results_folder(out_dir, sequence, config, runs, resume)  # before anything is written
+    if isinstance(scheduler, str):
+        scheduler = connect_scheduler(scheduler)  # before the IK fit: a wrong address fails at once
     out_dir.mkdir(parents=True, exist_ok=True)
     setup = prepare_track(sequence, config, out_dir)  # fits and caches the IK floor once
     (out_dir / "config.json").write_text(json.dumps(config_record(setup, runs), indent=1) + "\n")
