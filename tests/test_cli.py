@@ -58,3 +58,27 @@ def test_info_warns_about_an_implausible_unit(mocap_dir: Path):
     assert data["rest_height_mm"] > 20_000 and "is --unit right?" in data["warnings"][0]
     plain = runner.invoke(app, ["info", clip, "--unit", "m"])
     assert "not a person's height" in " ".join(plain.stderr.split())
+
+
+def test_info_and_ik_read_an_exported_file(mocap_dir: Path, tmp_path: Path):
+    """`swarmpose export` output goes back into `info` and `ik` (skeleton mapped by name); CMU clips stay CMU."""
+    import numpy as np
+
+    from swarmpose.body.model import load_model
+    from swarmpose.export import export_bvh
+
+    model = load_model("balan31")
+    P = np.tile(model.zero_pose(), (4, 1))
+    P[:, model.param_index("pelvis_tz")] = 950.0
+    P[:, model.param_index("pelvis_ty")] = np.linspace(0.0, 60.0, 4)
+    P[:, model.param_index("l_knee_flex")] = 0.4
+    bvh = export_bvh(model, P, 30.0, tmp_path / "m.bvh")
+    runner = CliRunner()
+    info = json.loads(runner.invoke(app, ["info", str(bvh), "--json"]).stdout)
+    assert info["skeleton"] == "swarmpose" and info["unit"] == "mm" and info["frames"] == 4
+    assert info["joints15"]["l_knee"]["bvh_joint"] == "l_knee"
+    ik = runner.invoke(app, ["ik", str(bvh), "--fps", "30", "--json"])
+    assert ik.exit_code == 0, ik.output
+    assert json.loads(ik.stdout)["ik_floor_mm"]["mean"] < 0.5  # the model fits its own motion (0.11 mm: the IK's rest prior)
+    cmu = json.loads(runner.invoke(app, ["info", str(mocap_dir / "cmu_16_35_jog.bvh"), "--json"]).stdout)
+    assert cmu["skeleton"] == "cmu"

@@ -9,7 +9,7 @@ import pytest
 
 from swarmpose.body.model import load_model
 from swarmpose.body.priors import HardPriors
-from swarmpose.errors import ConfigError, ShapeError
+from swarmpose.errors import ConfigError, FormatError, ShapeError
 from swarmpose.export import ROTATION_ORDERS, bvh_axes, euler_from_matrices, export_bvh
 from swarmpose.io.bvh import elementary_rotations, read_bvh
 
@@ -147,3 +147,28 @@ def test_errors(tmp_path: Path):
         export_bvh(model, P, 0.0, tmp_path / "a.bvh")
     with pytest.raises(ConfigError, match="rotation order"):
         export_bvh(model, P, 60.0, tmp_path / "a.bvh", rotation_order="XXY")
+
+
+@pytest.mark.parametrize("model_name", ["balan31", "full45"])
+def test_exported_clip_loads_back_as_ground_truth(tmp_path: Path, model_name: str):
+    """An exported file is a clip swarmpose reads (style "auto" -> "swarmpose", by joint name): its 15
+    joints are the model's, in the same world, and the subject measured from it is the model's."""
+    from swarmpose.body.subject import subject_from_clip
+    from swarmpose.io.mocap import load_clip
+
+    model = load_model(model_name)
+    P = random_valid_poses(model, 5)
+    path = export_bvh(model, P, 30.0, tmp_path / "m.bvh")
+    clip = load_clip(path, style="auto")
+    assert clip.skeleton_map.style == "swarmpose" and clip.unit_name == "mm"
+    np.testing.assert_allclose(clip.joints, model.joints15(P), atol=1e-3)
+    measured = subject_from_clip(model.spec, clip)
+    for name in ("l_thigh", "r_shank", "l_upper_arm", "r_forearm", "l_pelvis_to_hip", "r_thorax_to_shoulder",
+                 "spine_to_thorax"):
+        np.testing.assert_allclose(measured.offsets[name], model.subject.offsets[name], atol=1e-3, err_msg=name)
+    # the model's own +X rest facing is refused with the way out named; CMU files still map as CMU
+    turned = export_bvh(model, P, 30.0, tmp_path / "x.bvh", rest_facing="+x")
+    with pytest.raises(FormatError, match="--rest-facing \\+z"):
+        load_clip(turned, style="auto")
+    with pytest.raises(FormatError, match="not CMU-style"):
+        load_clip(path)  # the default style stays "cmu"

@@ -19,11 +19,14 @@ def info(
     unit: str = typer.Option(None, help="Source unit (mm, cm, m, inch, cmu) or mm per unit; inferred if omitted."),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object instead of a table."),
 ) -> None:
-    """Show a clip's frames, frame rate, duration, skeleton and unit scale."""
+    """Show a clip's frames, frame rate, duration, skeleton and unit scale.
+
+    Reads CMU-style skeletons (the shared clips) and files written by `swarmpose export`.
+    """
     from swarmpose.io.mocap import load_clip, rest_height
     from swarmpose.joints import JOINTS15
 
-    c = load_clip(clip, unit_scale=_unit(unit))
+    c = load_clip(clip, unit_scale=_unit(unit), style="auto")
     bvh = c.bvh
     j15 = c.joints
     height_mm = rest_height(bvh) * float(c.mm_per_unit)
@@ -40,6 +43,7 @@ def info(
         "channels": int(bvh.motion.shape[1]),
         "unit": c.unit_name,
         "mm_per_unit": float(c.mm_per_unit),
+        "skeleton": c.skeleton_map.style,
         "joints15": {
             name: {"bvh_joint": bvh.joints[c.skeleton_map.joint_index[i]].name,
                    "start_mm": [round(float(v), 1) for v in j15[0, i]]}
@@ -97,7 +101,7 @@ def ik(
     from swarmpose.io.mocap import load_clip
     from swarmpose.joints import JOINTS15
 
-    c = load_clip(clip, fps=fps, unit_scale=_unit(unit))
+    c = load_clip(clip, fps=fps, unit_scale=_unit(unit), style="auto")
     spec = load_spec(model)
     body = BodyModel(spec, subject_from_clip(spec, c), "thesis" if "thesis" in spec.variants else None)
     with tqdm(total=c.frames, desc=f"IK {c.name}", unit="frame", file=sys.stderr, disable=json_out) as bar:

@@ -42,6 +42,8 @@ __all__ = [
     "MocapClip",
     "SKELETON_STYLES",
     "cmu_skeleton_map",
+    "swarmpose_skeleton_map",
+    "auto_skeleton_map",
     "map_skeleton",
     "infer_unit_scale",
     "rest_height",
@@ -280,8 +282,60 @@ def _check_left_right(bvh: BvhClip, smap: SkeletonMap, fail: Callable[[str], For
         raise fail("the root's first leg is on the body's right in the rest pose (mirrored skeleton?)")
 
 
+def swarmpose_skeleton_map(bvh: BvhClip) -> SkeletonMap:
+    """Map a skeleton written by ``swarmpose export`` (a body model's joint tree) by joint *name*.
+
+    Every name of :data:`swarmpose.joints.JOINTS15` must be a joint (``head_top`` included: the
+    exporter writes it as a joint). Toes and hand tips are the ``l_toe`` / ``l_hand_tip`` joints
+    where the model has them (``full45``), else the ankle and wrist; the head is the ``head`` joint,
+    else ``head_top``'s parent. The rest pose must face +Z with the subject's left on +X, as the
+    exporter writes it by default (``--rest-facing +z``) and as CMU files stand.
+
+    Raises
+    ------
+    FormatError
+        A name is missing, or the rest pose does not put the left hip on +X.
+    """
+    names = list(bvh.joint_names)
+    missing = [n for n in JOINTS15 if n not in names]
+    if missing:
+        raise FormatError(f"skeleton is not a swarmpose export: no joint named {', '.join(missing)}", path=bvh.path)
+    idx = {n: names.index(n) for n in names}
+
+    def first(*candidates: str) -> int:
+        return next(idx[c] for c in candidates if c in idx)
+
+    rest, _ = bvh.rest_positions()
+    left = rest[idx["l_hip"]] - rest[idx["r_hip"]]
+    if not left[0] > 0.9 * np.linalg.norm(left):
+        raise FormatError("swarmpose export whose rest pose does not face +Z (left hip not on +X): "
+                          "export it again with the default --rest-facing +z", path=bvh.path)
+    head_top = idx["head_top"]
+    return SkeletonMap(
+        style="swarmpose",
+        joint_index=tuple(idx[n] for n in JOINTS15),
+        from_end_site=(False,) * len(JOINTS15),
+        l_toe=first("l_toe", "l_ankle"), r_toe=first("r_toe", "r_ankle"),
+        l_hand=idx["l_wrist"], r_hand=idx["r_wrist"],
+        l_hand_tip=first("l_hand_tip", "l_wrist"), r_hand_tip=first("r_hand_tip", "r_wrist"),
+        neck=first("neck", "thorax"),
+        head=idx["head"] if "head" in idx else max(int(bvh.parents[head_top]), 0),
+    )
+
+
+def auto_skeleton_map(bvh: BvhClip) -> SkeletonMap:
+    """The CMU map when the tree has the CMU structure, else a swarmpose export's map by joint name."""
+    try:
+        return cmu_skeleton_map(bvh)
+    except FormatError as cmu_error:
+        if all(n in bvh.joint_names for n in JOINTS15):
+            return swarmpose_skeleton_map(bvh)
+        raise cmu_error from None
+
+
 #: Skeleton styles by name -> function building a :class:`SkeletonMap` from a :class:`BvhClip`.
-SKELETON_STYLES: dict[str, Callable[[BvhClip], SkeletonMap]] = {"cmu": cmu_skeleton_map}
+SKELETON_STYLES: dict[str, Callable[[BvhClip], SkeletonMap]] = {
+    "cmu": cmu_skeleton_map, "swarmpose": swarmpose_skeleton_map, "auto": auto_skeleton_map}
 
 
 def map_skeleton(bvh: BvhClip, style: str = "cmu") -> SkeletonMap:
