@@ -82,3 +82,34 @@ def test_info_and_ik_read_an_exported_file(mocap_dir: Path, tmp_path: Path):
     assert json.loads(ik.stdout)["ik_floor_mm"]["mean"] < 0.5  # the model fits its own motion (0.11 mm: the IK's rest prior)
     cmu = json.loads(runner.invoke(app, ["info", str(mocap_dir / "cmu_16_35_jog.bvh"), "--json"]).stdout)
     assert cmu["skeleton"] == "cmu"
+
+
+def test_usage_errors_under_json_print_one_error_object():
+    """A bad option value or a missing argument (typer's own checks) also gives the error object under --json."""
+    for args, field in ((["compare", "thesis-apf", "--runs", "0"], "--runs"), (["info"], "clip")):
+        out = subprocess.run([sys.executable, "-m", "swarmpose", *args, "--json"], capture_output=True, text=True,
+                             check=False)
+        assert out.returncode == 2, out.stderr
+        data = json.loads(out.stdout)
+        assert data["exit_code"] == 2 and field in data["error"], data
+        assert "Error" in out.stderr  # the usual error box is still shown
+    plain = subprocess.run([sys.executable, "-m", "swarmpose", "info"], capture_output=True, text=True, check=False)
+    assert plain.returncode == 2 and plain.stdout == ""
+
+
+def test_paths_with_brackets_and_file_system_errors_are_reported_as_they_are(mocap_dir: Path, tmp_path: Path):
+    """Square brackets in a path are not Rich markup; a file where a folder is needed is a clear error (exit 2,
+    the JSON error object), not a traceback; a silly --scale is refused before any work."""
+    runner = CliRunner()
+    odd = tmp_path / "walk[bold]take2.bvh"
+    res = runner.invoke(app, ["info", str(odd)])
+    assert res.exit_code == 2 and "walk[bold]take2.bvh" in "".join(res.stderr.split())
+    blocker = tmp_path / "a_file"
+    blocker.write_text("x")
+    res = runner.invoke(app, ["ik", str(mocap_dir / "cmu_16_35_jog.bvh"), "--fps", "10",
+                              "--out", str(blocker / "fit.npz"), "--json"])
+    assert res.exit_code == 2, res.output
+    assert json.loads(res.stdout)["error"].startswith(str(blocker))
+    for scale in ("1e-4", "inf"):
+        res = runner.invoke(app, ["show", str(tmp_path), "--scale", scale])
+        assert res.exit_code == 2 and "--scale must lie in [0.05, 8]" in " ".join(res.stderr.split())

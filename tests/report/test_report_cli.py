@@ -84,3 +84,7 @@ def test_an_unknown_suite_fails_before_any_clip_is_synthesised(tmp_path: Path, m
     bad = CliRunner().invoke(app, ["compare", "nosuch", "--clip", str(tmp_path / "never.bvh")])
     assert bad.exit_code == 2 and "unknown suite 'nosuch'" in " ".join(bad.output.split())
     assert not (tmp_path / "cache").exists()
+    # a bad setting too, and no --out folder is left behind
+    bad = CliRunner().invoke(app, ["compare", "thesis-apf", "--downsample", "3", "--out", str(tmp_path / "cmp")])
+    assert bad.exit_code == 2 and "downsample must be 1, 2, 4 or 8" in " ".join(bad.output.split())
+    assert not (tmp_path / "cache").exists() and not (tmp_path / "cmp").exists()

@@ -330,3 +330,18 @@ def test_a_suite_refuses_two_sequences_that_would_share_a_folder(short_sequence,
     with pytest.raises(ConfigError, match="would share the results folder"):
         run_suite("thesis-apf", [a, b], tmp_path / "out", runs=1, workers=1, progress=False)
     assert not list((tmp_path / "out").rglob("config.json"))
+
+
+def test_marker_fitness_on_a_sequence_without_markers_fails_before_the_ik_fit(tmp_path, mocap_dir):
+    """`compare markers` on images-only data: a clear error naming the way out, and no results written."""
+    from swarmpose.errors import DataError
+    from swarmpose.experiments.run import run_suite
+    from swarmpose.synth.markers import MarkerSettings
+    from swarmpose.synth.synthesize import synthesize
+
+    seq = tmp_path / "no_markers"
+    synthesize(mocap_dir / "cmu_16_16_walk.bvh", seq, fps=60, seed=0, max_frames=3, measure=False, progress=False,
+               markers=MarkerSettings(markers="none"))
+    with pytest.raises(DataError, match="no 2D marker detections.*--markers joints15"):
+        run_suite("markers", [seq], tmp_path / "cmp", runs=1, workers=1, progress=False)
+    assert not list((tmp_path / "cmp").rglob("ik.npz")) and not list((tmp_path / "cmp").rglob("run_*"))

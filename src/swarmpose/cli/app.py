@@ -18,8 +18,38 @@ app = typer.Typer(
 
 
 def main() -> None:
-    """Entry point of the ``swarmpose`` script."""
-    app()
+    """Entry point of the ``swarmpose`` script.
+
+    With ``--json`` a command-line usage error (a bad option value, a missing argument) also prints
+    the ``{"error", "exit_code"}`` object on stdout, as the command's own errors do
+    (:func:`swarmpose.cli.common.fail_on_user_error`).
+    """
+    import sys
+
+    if "--json" not in sys.argv[1:]:
+        app()
+        return
+    try:
+        from typer._click.exceptions import ClickException  # newer typer carries its own click
+    except ImportError:  # pragma: no cover - typer on the installed click
+        from click.exceptions import ClickException
+
+    from swarmpose.cli.common import print_json
+
+    try:
+        rv = app(standalone_mode=False)
+    except ClickException as exc:
+        try:
+            from typer import rich_utils
+
+            rich_utils.rich_format_error(exc)  # the usual error box on stderr
+        except (ImportError, AttributeError):  # pragma: no cover - older or newer typer
+            exc.show()
+        print_json({"error": exc.format_message(), "exit_code": exc.exit_code})
+        sys.exit(exc.exit_code)
+    except typer.Abort:
+        sys.exit(1)
+    sys.exit(rv if isinstance(rv, int) else 0)
 
 
 # Command modules: importing one adds its commands to ``app``.

@@ -27,7 +27,7 @@ def _ints(text: str, name: str) -> list[int]:
 @fail_on_user_error
 def fitness(
     backends: str = typer.Option("numba,reference", help="Comma-separated backends; 'reference' gives the ratios."),
-    scales: str = typer.Option("1,2,4", help="Downsampling factors of 644x484 (1 full, 2 half, 4 quarter)."),
+    scales: str = typer.Option("1,2,4", help="Downsampling factors of 644x484 (1 full, 2 half, 4 quarter, 8)."),
     batches: str = typer.Option("20,200", help="Batch sizes (poses per call)."),
     views: int = typer.Option(4, help="Number of camera views."),
     repeats: int = typer.Option(5, help="Timing runs per measurement (the median is reported)."),
@@ -52,7 +52,10 @@ def fitness(
         if not json_out:
             err_console.print(f"[dim]{msg}…[/dim]", highlight=False)
 
-    res = run_fitness_benchmark(backends=names, scales=_ints(scales, "scales"), batches=_ints(batches, "batches"),
+    scale_list = _ints(scales, "scales")
+    if any(f not in (1, 2, 4, 8) for f in scale_list):
+        raise ConfigError(f"--scales: each factor must be 1, 2, 4 or 8 (what `track --downsample` takes), got {scales!r}")
+    res = run_fitness_benchmark(backends=names, scales=scale_list, batches=_ints(batches, "batches"),
                                 n_views=views, repeats=repeats, min_time=min_time,
                                 reference_max_batch=reference_max_batch, seed=seed, progress=say)
     if json_out:

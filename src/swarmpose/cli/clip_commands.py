@@ -9,7 +9,7 @@ import numpy as np
 import typer
 
 from swarmpose.cli.app import app
-from swarmpose.cli.common import console, fail_on_user_error, print_json
+from swarmpose.cli.common import console, escape, fail_on_user_error, print_json
 
 
 @app.command()
@@ -62,9 +62,9 @@ def info(
     from swarmpose.cli.common import err_console
 
     for w in warnings:
-        err_console.print(f"[bold yellow]warning:[/bold yellow] {w}", highlight=False)
+        err_console.print(f"[bold yellow]warning:[/bold yellow] {escape(w)}", highlight=False)
 
-    console.print(f"[bold]{clip}[/bold]")
+    console.print(f"[bold]{escape(str(clip))}[/bold]")
     console.print(f"  {data['frames']} frames at {data['frame_rate']:g} fps = {data['duration_s']:.3f} s, "
                   f"{data['joints']} joints / {data['channels']} channels, unit {data['unit']} "
                   f"({data['mm_per_unit']:.3f} mm per unit; the rest pose stands {height_mm:.0f} mm tall)")
@@ -101,6 +101,11 @@ def ik(
     from swarmpose.io.mocap import load_clip
     from swarmpose.joints import JOINTS15
 
+    if out is not None and Path(out).is_dir():  # before the fit, which takes a while
+        from swarmpose.errors import ConfigError
+
+        raise ConfigError(f"--out {out} is a folder; give the .npz file to write, "
+                          f"e.g. {Path(out) / (Path(clip).stem + '_ik.npz')}")
     c = load_clip(clip, fps=fps, unit_scale=_unit(unit), style="auto")
     spec = load_spec(model)
     body = BodyModel(spec, subject_from_clip(spec, c), "thesis" if "thesis" in spec.variants else None)
@@ -120,11 +125,6 @@ def ik(
     }
     if out is not None:
         out = Path(out)
-        if out.is_dir():
-            from swarmpose.errors import ConfigError
-
-            raise ConfigError(f"--out {out} is a folder; give the .npz file to write, "
-                              f"e.g. {out / (c.name + '_ik.npz')}")
         if out.suffix != ".npz":
             out = out.with_name(out.name + ".npz")  # what numpy would write anyway; say so
         out.parent.mkdir(parents=True, exist_ok=True)
@@ -136,13 +136,13 @@ def ik(
     if json_out:
         print_json(data)
         return
-    console.print(f"[bold]{c.name}[/bold]: {c.frames} frames at {c.frame_rate:g} fps, model {body.name}")
+    console.print(f"[bold]{escape(c.name)}[/bold]: {c.frames} frames at {c.frame_rate:g} fps, model {body.name}")
     console.print(f"  IK floor: mean {res.floor_mean_mm:.2f} mm, max {res.floor_max_mm:.2f} mm; "
                   f"{100 * valid.mean():.1f} % of fitted poses satisfy the hard priors")
     worst = sorted(data["per_joint_mm"].items(), key=lambda kv: -kv[1])[:4]
     console.print("  largest per-joint errors: " + ", ".join(f"{n} {v:.1f} mm" for n, v in worst))
     if out is not None:
-        console.print(f"  wrote {out} and {out.with_suffix('.subject.json')}")
+        console.print(f"  wrote {out} and {out.with_suffix('.subject.json')}", markup=False, highlight=False)
 
 
 def _unit(unit: str | None):

@@ -11,13 +11,15 @@ from typing import Any, TypeVar
 import numpy as np
 import typer
 from rich.console import Console
+from rich.markup import escape
 
 from swarmpose.errors import SwarmposeError
 
-__all__ = ["console", "err_console", "print_json", "fail_on_user_error", "to_jsonable"]
+__all__ = ["console", "err_console", "escape", "print_json", "fail_on_user_error", "to_jsonable"]
 
-console = Console()
-err_console = Console(stderr=True)
+# soft_wrap: lines are not cut at 80 columns when stdout is a file or a pipe (tables still fit the width)
+console = Console(soft_wrap=True)
+err_console = Console(stderr=True, soft_wrap=True)
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -45,8 +47,19 @@ def print_json(data: Any) -> None:
     sys.stdout.flush()
 
 
+def _os_message(exc: OSError) -> str:
+    """``PATH: reason`` for a file-system error (``[Errno 17] File exists: '/dev/null'`` reads badly)."""
+    if not exc.filename or not exc.strerror:
+        return str(exc)
+    hint = ""
+    if isinstance(exc, FileExistsError | NotADirectoryError):
+        hint = " (a file stands where a folder is needed)"
+    return f"{exc.filename}: {exc.strerror}{hint}"
+
+
 def fail_on_user_error(func: F) -> F:
-    """Turn swarmpose's own errors (bad files, bad options) into a one-line message and exit code 2.
+    """Turn swarmpose's own errors (bad files, bad options) and file-system errors (an output path under a file,
+    no permission) into a one-line message and exit code 2.
 
     Under ``--json`` (a ``json_out`` argument that is true) stdout also gets the one JSON object the
     contract promises, ``{"error": MESSAGE, "exit_code": 2}``, so a script reading stdout sees why.
@@ -56,10 +69,11 @@ def fail_on_user_error(func: F) -> F:
     def wrapper(*args: Any, **kwargs: Any) -> Any:
         try:
             return func(*args, **kwargs)
-        except (SwarmposeError, FileNotFoundError) as exc:
-            err_console.print(f"[bold red]error:[/bold red] {exc}", highlight=False)
+        except (SwarmposeError, OSError) as exc:  # OSError: a path that cannot be read or written
+            message = _os_message(exc) if isinstance(exc, OSError) else str(exc)
+            err_console.print(f"[bold red]error:[/bold red] {escape(message)}", highlight=False)
             if kwargs.get("json_out") is True:
-                print_json({"error": str(exc), "exit_code": 2})
+                print_json({"error": message, "exit_code": 2})
             raise typer.Exit(code=2) from None
 
     return wrapper  # type: ignore[return-value]

@@ -30,11 +30,10 @@ def compare(
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object with the table's rows."),
 ) -> None:
     """Run an experiment suite (entries × clips × runs in parallel) and write a comparison table."""
-    from swarmpose.experiments.run import run_suite
-    from swarmpose.experiments.suites import suite as suite_entries
+    from swarmpose.experiments.run import run_suite, suite_configs
     from swarmpose.track.runner import resolve_sequence
 
-    suite_entries(suite)  # an unknown suite fails before any clip is synthesised
+    suite_configs(suite, seed=seed, downsample=downsample)  # an unknown suite or a bad setting fails before any clip is synthesised
     seqs = [resolve_sequence(s, progress=not json_out) for s in (sources or [str(DEFAULT_CLIP)])]
     out = out or Path("results") / "compare" / suite
     report = run_suite(suite, seqs, out, runs=runs, seed=seed, workers=workers, scheduler=scheduler,
@@ -42,5 +41,5 @@ def compare(
     if json_out:
         print_json(report)
         return
-    console.print((out / "comparison.md").read_text())
-    console.print(f"written: {out / 'comparison.md'} and {out / 'comparison.json'}")
+    console.print((out / "comparison.md").read_text(), markup=False, highlight=False)
+    console.print(f"written: {out / 'comparison.md'} and {out / 'comparison.json'}", markup=False, highlight=False)

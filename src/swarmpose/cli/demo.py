@@ -7,7 +7,7 @@ from pathlib import Path
 import typer
 
 from swarmpose.cli.app import app
-from swarmpose.cli.common import console, err_console, fail_on_user_error, print_json
+from swarmpose.cli.common import console, err_console, escape, fail_on_user_error, print_json
 
 DEFAULT_CLIP = Path(__file__).resolve().parents[3].parent / "shared" / "data" / "mocap" / "cmu_16_16_walk.bvh"
 
@@ -42,7 +42,7 @@ def demo(
     summary = _finished(out)
     if summary is not None and summary.get("runs", 0) >= runs:
         check_results_folder(out, seq, config, runs, resume=True)  # other settings, fewer runs: refused, named
-        err_console.print(f"[yellow]{out}/summary.json exists: reusing the tracked runs (delete the folder to "
+        err_console.print(f"[yellow]{escape(str(out))}/summary.json exists: reusing the tracked runs (delete the folder to "
                           "redo)[/yellow]")
     else:  # a fresh demo, an interrupted one (resumed) or more runs than a finished one (added)
         summary = track_runs(seq, config, runs, out, resume=(out / "config.json").is_file(), progress=not json_out)
@@ -52,14 +52,14 @@ def demo(
     if json_out:
         print_json(data)
         return
-    console.print(f"[bold]{algo}[/bold] on {Path(clip).name} at {fps:g} fps, {runs} runs, "
+    console.print(f"[bold]{algo}[/bold] on {escape(Path(clip).name)} at {fps:g} fps, {runs} runs, "
                   f"{summary['evals_per_frame']} evaluations per frame")
     console.print(f"  D_mean {summary['d_mean_mm']:.1f} mm, D_max {summary['d_max_mm']:.1f} mm, "
                   f"IK floor {summary['ik_floor_mm']:.1f} mm, MMTA {100 * summary['mmta']:.1f} %, "
                   f"{summary['frames_per_s']:.2f} frames/s per run")
-    console.print(f"  report: {paths.summary}")
+    console.print(f"  report: {paths.summary}", markup=False, highlight=False)
     for p in [*paths.figures, *paths.overlays]:
-        console.print(f"    {p}")
+        console.print(f"    {p}", markup=False, highlight=False)
 
 
 def _finished(out: Path) -> dict | None:

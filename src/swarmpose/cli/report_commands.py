@@ -9,7 +9,7 @@ from typing import Annotated
 import typer
 
 from swarmpose.cli.app import app
-from swarmpose.cli.common import console, err_console, fail_on_user_error, print_json
+from swarmpose.cli.common import console, err_console, escape, fail_on_user_error, print_json
 
 
 @app.command()
@@ -41,18 +41,18 @@ def report(
     paths = make_report(results_dir, video=video, overlay_frames=frames, run=run, out_dir=out,
                         sequence=sequence, video_format=video_format.lower())
     for note in paths.notes:
-        err_console.print(f"[yellow]note:[/yellow] {note}", highlight=False)
+        err_console.print(f"[yellow]note:[/yellow] {escape(note)}", highlight=False)
     if json_out:
         print_json(paths.to_dict())
         return
-    console.print(f"[bold]report of {results_dir}[/bold]")
-    console.print(f"  summary  {paths.summary}", highlight=False)
+    console.print(f"[bold]report of {escape(str(results_dir))}[/bold]")
+    console.print(f"  summary  {paths.summary}", markup=False, highlight=False)
     for p in paths.figures:
-        console.print(f"  figure   {p}", highlight=False)
+        console.print(f"  figure   {p}", markup=False, highlight=False)
     for p in paths.overlays:
-        console.print(f"  overlay  {p}", highlight=False)
+        console.print(f"  overlay  {p}", markup=False, highlight=False)
     if paths.video is not None:
-        console.print(f"  video    {paths.video}", highlight=False)
+        console.print(f"  video    {paths.video}", markup=False, highlight=False)
 
 
 @app.command()
@@ -103,4 +103,4 @@ def export(
         print_json(data)
         return
     console.print(f"wrote {path}: {data['frames']} frames at {fps:g} fps, {data['joints']} joints "
-                  f"({'Z' if z_up else 'Y'} up, {unit})", highlight=False)
+                  f"({'Z' if z_up else 'Y'} up, {unit})", markup=False, highlight=False)

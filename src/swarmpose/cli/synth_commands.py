@@ -9,7 +9,7 @@ import numpy as np
 import typer
 
 from swarmpose.cli.app import app
-from swarmpose.cli.common import console, fail_on_user_error, print_json
+from swarmpose.cli.common import console, escape, fail_on_user_error, print_json
 
 
 def parse_albedo(text: str) -> dict[str, float]:
@@ -77,14 +77,14 @@ def synth(
         return
     iou = data["silhouette_iou"]
     fs = data["model_fs_at_gt"]
-    console.print(f"[bold]{data['path']}[/bold]: {data['frames']} frames x {data['views']} views in "
+    console.print(f"[bold]{escape(str(data['path']))}[/bold]: {data['frames']} frames x {data['views']} views in "
                   f"{data['seconds']:.1f} s ({data['disk_mb']:.0f} MB)")
     if iou.get("n"):
         console.print(f"  silhouette IoU (image-derived vs exact): min {iou['min']:.3f}, p05 {iou['p05']:.3f}, "
                       f"median {iou['p50']:.3f}, mean {iou['mean']:.3f} over {iou['n']} frame-views")
     if fs.get("mean") is not None:
         console.print(f"  balan31 f_s at its IK pose: mean {fs['mean']:.3f} (min {fs['min']:.3f}, max {fs['max']:.3f}) "
-                      f"over {fs['n_frames']} frames; IK floor {fs['ik_floor_mm']:.1f} mm")
+                      f"over {fs['n_frames']} frame{'' if fs['n_frames'] == 1 else 's'}; IK floor {fs['ik_floor_mm']:.1f} mm")
     sm = data.get("subject_measurements")
     if sm:
         console.print("  subject measurements (mm, for the tracker's cones): "
@@ -175,8 +175,9 @@ def contact_sheet(path: Path, frame: int) -> np.ndarray:
 def show(
     seq_dir: Annotated[Path, typer.Argument(help="A sequence folder (from swarmpose synth).")],
     frame: Annotated[int, typer.Option("--frame", help="Frame index.")] = 0,
-    out: Annotated[Path | None, typer.Option("--out", help="PNG to write (default: <DIR>/contact_<frame>.png).")] = None,
-    scale: Annotated[float, typer.Option(help="Resize the sheet by this factor.")] = 1.0,
+    out: Annotated[Path | None, typer.Option("--out", help="PNG to write (default: <DIR>/contact_NNNNNN.png, "
+                                                           "the frame index in 6 digits).")] = None,
+    scale: Annotated[float, typer.Option(help="Resize the sheet by this factor (0.05 to 8).")] = 1.0,
 ) -> None:
     """Write a PNG contact sheet of one frame: every view with its markers, silhouette and edge map."""
     import cv2
@@ -185,13 +186,13 @@ def show(
 
     if out is not None and out.suffix.lower() not in (".png", ".jpg", ".jpeg"):
         raise ConfigError(f"--out {out}: the contact sheet is written as .png (or .jpg), not {out.suffix or 'a file without suffix'}")
+    if not (np.isfinite(scale) and 0.05 <= scale <= 8.0):
+        raise ConfigError(f"--scale must lie in [0.05, 8] (a factor on the sheet's size), got {scale!r}")
     sheet = contact_sheet(seq_dir, frame)
     if scale != 1.0:
-        if not scale > 0:
-            raise ConfigError(f"--scale must be > 0, got {scale!r}")
         sheet = cv2.resize(sheet, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
     out = out if out is not None else seq_dir / f"contact_{frame:06d}.png"
     out.parent.mkdir(parents=True, exist_ok=True)
     if not cv2.imwrite(str(out), sheet):
         raise DataError(f"{out}: cannot write the PNG")
-    console.print(str(out), highlight=False)
+    console.print(str(out), markup=False, highlight=False)

@@ -7,7 +7,7 @@ from pathlib import Path
 import typer
 
 from swarmpose.cli.app import app
-from swarmpose.cli.common import console, err_console, fail_on_user_error, print_json
+from swarmpose.cli.common import console, err_console, escape, fail_on_user_error, print_json
 
 
 @app.command()
@@ -79,7 +79,7 @@ def track(
         print_json(summary)
         return
     name = seq.name if isinstance(seq, Path) else str(seq)
-    console.print(f"[bold]{algo}[/bold] on {name} at {fps:g} fps, {runs} run(s), "
+    console.print(f"[bold]{algo}[/bold] on {escape(name)} at {fps:g} fps, {runs} run(s), "
                   f"{summary['evals_per_frame']} evaluations per frame ({summary['fitness']} fitness)")
     console.print(f"  D_mean {summary['d_mean_mm']:.1f} mm, D_max {summary['d_max_mm']:.1f} mm "
                   f"(IK floor {summary['ik_floor_mm']:.1f} mm); MMTA {100 * summary['mmta']:.1f} %; "
@@ -87,11 +87,11 @@ def track(
     if runs > 1:
         w = summary["worst"]
         console.print(f"  worst run {w['run']}: D_mean {w['d_mean_mm']:.1f} mm, D_max {w['d_max_mm']:.1f} mm")
-    console.print(f"  results in {out}/  (make a report: swarmpose report {out})")
+    console.print(f"  results in {out}/  (make a report: swarmpose report {out})", markup=False, highlight=False)
 
 
 @app.command()
-def algorithms(json_out: bool = typer.Option(False, "--json", help="Print a JSON list instead of a table.")) -> None:
+def algorithms(json_out: bool = typer.Option(False, "--json", help='Print one JSON object {"algorithms": [...]} instead of a table.')) -> None:
     """List every named algorithm with its fitness evaluations per frame and paper reference."""
     from swarmpose.optim.cli import algorithms_command
 

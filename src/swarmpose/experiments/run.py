@@ -15,7 +15,7 @@ from swarmpose.metrics import aggregate_runs
 from swarmpose.track.runner import Job, check_results_folder, connect_scheduler, errors_from_summary, run_jobs
 from swarmpose.track.tracker import TrackConfig, config_record, prepare_track
 
-__all__ = ["run_suite", "comparison_table"]
+__all__ = ["run_suite", "suite_configs", "comparison_table"]
 
 
 def _slug(text: str) -> str:
@@ -29,20 +29,24 @@ def _sequence_name(seq: Any) -> str:
     return dataset_sequence_name(seq) if is_dataset_spec(seq) else Path(str(seq)).name
 
 
+def suite_configs(name: str, *, seed: int = 0, downsample: int = 1) -> list[tuple[Entry, TrackConfig]]:
+    """Every entry of suite ``name`` with its validated :class:`TrackConfig` (bad settings fail here, before
+    any clip is synthesised or folder written)."""
+    return [(e, TrackConfig(algo=e.algo, fps=e.fps, fitness=e.fitness, seed=seed, downsample=downsample,
+                            optim_variant=e.variant, fitness_options=e.fitness_options)) for e in suite(name)]
+
+
 def run_suite(name: str, sequences: list[Path], out_dir: Path, *, runs: int = 5, seed: int = 0,
               workers: int | None = None, scheduler: Any = None, resume: bool = False,
               downsample: int = 1, progress: bool = True) -> dict[str, Any]:
     """Run suite ``name`` on the sequences and write ``out_dir/{comparison.json, comparison.md}``."""
-    entries = suite(name)
+    configs = suite_configs(name, seed=seed, downsample=downsample)
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
     jobs: list[Job] = []
     cells: list[tuple[Entry, Path, Path, Any]] = []
     planned: dict[Path, tuple[Any, Entry, TrackConfig]] = {}
     for seq in sequences:  # every cell checked before any is written
-        for e in entries:
-            cfg = TrackConfig(algo=e.algo, fps=e.fps, fitness=e.fitness, seed=seed, downsample=downsample,
-                              optim_variant=e.variant, fitness_options=e.fitness_options)
+        for e, cfg in configs:
             cell = out_dir / _slug(_sequence_name(seq)) / _slug(e.label)
             if cell in planned:
                 raise ConfigError(f"two sequences would share the results folder {cell}: {planned[cell][0]} and "
@@ -51,6 +55,7 @@ def run_suite(name: str, sequences: list[Path], out_dir: Path, *, runs: int = 5,
             planned[cell] = (seq, e, cfg)
     if isinstance(scheduler, str):
         scheduler = connect_scheduler(scheduler)  # before the IK fits: a wrong address fails at once
+    out_dir.mkdir(parents=True, exist_ok=True)
     for cell, (seq, e, cfg) in planned.items():
         setup = prepare_track(seq, cfg, cell)  # IK floor once per cell, before the workers start
         cell.mkdir(parents=True, exist_ok=True)
@@ -78,7 +83,7 @@ def run_suite(name: str, sequences: list[Path], out_dir: Path, *, runs: int = 5,
 
 
 def comparison_table(report: dict[str, Any]) -> str:
-    lines = [f"# Suite `{report['suite']}` ({report['runs']} runs per entry, seed {report['seed']})", "",
+    lines = [f"# Suite `{report['suite']}` ({report['runs']} run{'' if report['runs'] == 1 else 's'} per entry, seed {report['seed']})", "",
              "| sequence | entry | eval/frame | D_mean mm (± over runs) | worst run D_mean | D_max mm | IK floor mm "
              "| MMTA % | frames/s |",
              "|---|---|---:|---:|---:|---:|---:|---:|---:|"]

@@ -30,7 +30,7 @@ class Entry:
 
 def _thesis_apf() -> list[Entry]:
     ref = "Fleischmann 2012, sec. 6.5 (Fig. 6.8, 6.9)"
-    return [Entry(f"{a} {f}fps", a, f, reference=ref) for f in (20.0, 60.0) for a in ("sppso", "apf")]
+    return [Entry(f"{a} {f:g}fps", a, f, reference=ref) for f in (20.0, 60.0) for a in ("sppso", "apf")]
 
 
 def _thesis_partitions() -> list[Entry]:

@@ -15,11 +15,12 @@ def algorithms_command(json: bool = False) -> None:
     Parameters
     ----------
     json : bool
-        Print a JSON list of ``{"name", "evals_per_frame", "reference"}`` instead of a table.
+        Print one JSON object ``{"algorithms": [{"name", "evals_per_frame", "reference"}, ...]}`` on one
+        line instead of a table (the CLI's ``--json`` contract: exactly one object).
     """
     rows = describe()
     if json:
-        print(_json.dumps(rows, indent=2))
+        print(_json.dumps({"algorithms": rows}))
         return
     from rich.console import Console
     from rich.table import Table

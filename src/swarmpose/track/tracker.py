@@ -262,6 +262,10 @@ def prepare_track(sequence_path: str | Path, config: TrackConfig, out_dir: Path 
                             "them for the start pose and the errors")
         spec = load_spec(config.model)
         frames = np.asarray(seq.subsample(config.fps), dtype=np.int64)
+        if config.fitness_kind in MARKER_FITNESS and seq.markers(int(frames[0])) is None:
+            raise DataError(f"{sequence_path}: the sequence has no 2D marker detections, which the "
+                            f"{config.fitness_kind} fitness needs (synthesise it with `swarmpose synth "
+                            "--markers joints15`)")
         gt = np.asarray(seq.gt_joints)[frames]
         times = np.asarray(seq.frame_times)[frames]
         key = _ik_cache_key(sequence_path, config)
@@ -336,13 +340,14 @@ def _frame_observation(seq: Any, k: int, kind: str, downsample: int, backgrounds
 
         markers = seq.markers(k)
         if markers is None:
-            raise DataError(f"{seq}: frame {k} has no 2D marker detections (needed by the {kind} fitness)")
+            raise DataError(f"{getattr(seq, 'path', seq)}: frame {k} has no 2D marker detections (needed by the "
+                            f"{kind} fitness)")
         return MarkerFrame(markers, list(seq.cameras))
     from swarmpose.features import compute_features
 
     images = seq.images(k)
     if images is None:
-        raise DataError(f"{seq}: frame {k} has no images (needed by the {kind} fitness)")
+        raise DataError(f"{getattr(seq, 'path', seq)}: frame {k} has no images (needed by the {kind} fitness)")
     sil_opts, edge_opts = feature_options
     return compute_features(images, backgrounds, list(seq.cameras), downsample=downsample,
                             silhouette_options=sil_opts, edge_options=edge_opts)
