@@ -10,7 +10,7 @@ import pytest
 from swarmpose.body.model import load_model
 from swarmpose.body.priors import HardPriors
 from swarmpose.errors import ConfigError, FormatError, ShapeError
-from swarmpose.export import ROTATION_ORDERS, bvh_axes, euler_from_matrices, export_bvh
+from swarmpose.export import ROTATION_ORDERS, bvh_axes, euler_from_matrices, export_bvh, rest_rotation
 from swarmpose.io.bvh import elementary_rotations, read_bvh
 
 
@@ -67,9 +67,13 @@ def test_header_and_units(tmp_path: Path):
     np.testing.assert_allclose(world[:, idx], model.joint_positions(P), atol=1e-3)
     p60 = export_bvh(model, P, 60.0, tmp_path / "60.bvh")
     assert read_bvh(p60).frame_rate == 60.0
-    # offsets are the subject's measurements, in the file's axes (Y up: (x, z, -y))
-    thigh = read_bvh(p60).joints[read_bvh(p60).joint_index("l_knee")].offset
-    np.testing.assert_allclose(thigh, bvh_axes(True) @ np.asarray(model.subject.offsets["l_thigh"]), atol=1e-6)
+    # offsets are the subject's measurements in the rest pose's axes: B = Q A (Y up, turned to face +Z);
+    # the hip's offset is not vertical, so a wrong turn would show there
+    B = rest_rotation() @ bvh_axes(True)
+    clip60 = read_bvh(p60)
+    for joint, offset in (("l_knee", "l_thigh"), ("l_hip", "l_pelvis_to_hip"), ("r_shoulder", "r_thorax_to_shoulder")):
+        np.testing.assert_allclose(clip60.joints[clip60.joint_index(joint)].offset,
+                                   B @ np.asarray(model.subject.offsets[offset]), atol=1e-6, err_msg=joint)
 
 
 def _rest_positions(clip) -> np.ndarray:
@@ -164,11 +168,38 @@ def test_exported_clip_loads_back_as_ground_truth(tmp_path: Path, model_name: st
     np.testing.assert_allclose(clip.joints, model.joints15(P), atol=1e-3)
     measured = subject_from_clip(model.spec, clip)
     for name in ("l_thigh", "r_shank", "l_upper_arm", "r_forearm", "l_pelvis_to_hip", "r_thorax_to_shoulder",
-                 "spine_to_thorax"):
-        np.testing.assert_allclose(measured.offsets[name], model.subject.offsets[name], atol=1e-3, err_msg=name)
+                 "spine_to_thorax", "l_foot", "r_hand", "neck_to_head", "head_to_top"):
+        if name in model.subject.offsets:  # full45 has feet, hands and a head joint; balan31 not
+            np.testing.assert_allclose(measured.offsets[name], model.subject.offsets[name], atol=1e-3, err_msg=name)
+    if model_name == "balan31":  # a full45 subject cannot be measured from a file without toes and hands
+        with pytest.raises(ConfigError, match="needs the joints l_toe, l_hand_tip, head"):
+            subject_from_clip(load_model("full45").spec, clip)
     # the model's own +X rest facing is refused with the way out named; CMU files still map as CMU
     turned = export_bvh(model, P, 30.0, tmp_path / "x.bvh", rest_facing="+x")
     with pytest.raises(FormatError, match="--rest-facing \\+z"):
         load_clip(turned, style="auto")
     with pytest.raises(FormatError, match="not CMU-style"):
         load_clip(path)  # the default style stays "cmu"
+    with pytest.raises(FormatError, match="without --z-up"):
+        load_clip(export_bvh(model, P, 30.0, tmp_path / "z.bvh", y_up=False), style="auto")
+
+
+def test_auto_maps_by_name_whatever_the_tree_order(tmp_path: Path):
+    """A model file whose thorax lists the neck first has the CMU tree shape; "auto" still maps it by name
+    (read as CMU, head_top would be the exporter's made-up End Site, 45 mm off)."""
+    import json
+
+    import swarmpose
+    from swarmpose.io.mocap import load_clip
+
+    spec = json.loads((Path(swarmpose.__file__).parent / "models" / "full45.json").read_text())
+    head = [j for j in spec["joints"] if j["name"] in ("neck", "head", "head_top")]
+    rest = [j for j in spec["joints"] if j["name"] not in ("neck", "head", "head_top")]
+    i = [j["name"] for j in rest].index("thorax")
+    spec["joints"] = rest[: i + 1] + head + rest[i + 1:]
+    (tmp_path / "neck_first.json").write_text(json.dumps(spec))
+    model = load_model(str(tmp_path / "neck_first.json"))
+    P = random_valid_poses(model, 4)
+    clip = load_clip(export_bvh(model, P, 30.0, tmp_path / "nf.bvh"), style="auto")
+    assert clip.skeleton_map.style == "swarmpose"
+    np.testing.assert_allclose(clip.joints, model.joints15(P), atol=1e-3)

@@ -29,6 +29,7 @@ import numpy as np
 
 from swarmpose.body.measurements import SubjectMeasurements, measured_cones
 from swarmpose.body.spec import BodySpec, Subject
+from swarmpose.errors import ConfigError
 from swarmpose.io.bvh import BvhClip
 from swarmpose.io.mocap import MocapClip
 
@@ -83,6 +84,13 @@ def subject_from_clip(spec: BodySpec, clip: MocapClip, measurements: SubjectMeas
     pos, ends = rest_positions(clip.bvh)
     sm = clip.skeleton_map
     s = clip.mm_per_unit
+    if sm.style == "swarmpose":  # an exported file: its tips are joints, its End Sites made up
+        ends = pos
+        needed = {"l_foot": "l_toe", "l_hand": "l_hand_tip", "neck_to_head": "head"}
+        missing = [j for o, j in needed.items() if o in spec.default_subject.offsets and j not in clip.joint_names]
+        if missing:
+            raise ConfigError(f"{clip.source_path}: the {spec.name} model needs the joints {', '.join(missing)}, "
+                              "which this exported file has not (export a model that has them, e.g. full45)")
 
     def p(name: str) -> np.ndarray:
         j = sm.joint(name)

@@ -69,6 +69,8 @@ def fail_on_user_error(func: F) -> F:
     def wrapper(*args: Any, **kwargs: Any) -> Any:
         try:
             return func(*args, **kwargs)
+        except BrokenPipeError:  # stdout closed by the reader (`| head`): nothing to report to
+            raise
         except (SwarmposeError, OSError) as exc:  # OSError: a path that cannot be read or written
             message = _os_message(exc) if isinstance(exc, OSError) else str(exc)
             err_console.print(f"[bold red]error:[/bold red] {escape(message)}", highlight=False)

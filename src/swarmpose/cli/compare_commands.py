@@ -31,12 +31,13 @@ def compare(
 ) -> None:
     """Run an experiment suite (entries × clips × runs in parallel) and write a comparison table."""
     from swarmpose.experiments.run import run_suite, suite_configs
-    from swarmpose.track.runner import resolve_sequence
+    from swarmpose.track.runner import connect_scheduler, resolve_sequence
 
     suite_configs(suite, seed=seed, downsample=downsample)  # an unknown suite or a bad setting fails before any clip is synthesised
+    client = connect_scheduler(scheduler) if scheduler else None  # a wrong address fails before any synthesis
     seqs = [resolve_sequence(s, progress=not json_out) for s in (sources or [str(DEFAULT_CLIP)])]
     out = out or Path("results") / "compare" / suite
-    report = run_suite(suite, seqs, out, runs=runs, seed=seed, workers=workers, scheduler=scheduler,
+    report = run_suite(suite, seqs, out, runs=runs, seed=seed, workers=workers, scheduler=client,
                        resume=resume, downsample=downsample, progress=not json_out)
     if json_out:
         print_json(report)

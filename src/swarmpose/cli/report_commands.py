@@ -76,7 +76,8 @@ def export(
 
     The hierarchy is the body model's joint tree with the subject's limb lengths; the frame rate is
     the tracking rate. Y up by default: a BVH vector is (x, z, -y) of the swarmpose world (Z up, mm),
-    so the joints land where `track` put them, and the rest pose stands facing +Z.
+    so the joints land where `track` put them, and the rest pose stands facing +Z (--rest-facing +x: the
+    model's own zero pose, facing +X; --z-up keeps the world's axes and the model's zero pose).
     """
     from swarmpose.errors import ConfigError
     from swarmpose.export import REST_FACINGS, export_bvh

@@ -52,12 +52,13 @@ def track(
     run run_XXX/ with joints.npz (joints, gt_joints, frame_times, world_from_source), track.npz
     (parameters, fitness, evaluations, timings per frame) and summary.json.
     """
-    from swarmpose.track.runner import resolve_sequence, track_runs
+    from swarmpose.track.runner import connect_scheduler, resolve_sequence, track_runs
     from swarmpose.track.tracker import TrackConfig
 
     cfg = TrackConfig(algo=algo, fps=fps, model=model, fitness=fitness, backend=backend,
                       downsample=downsample, seed=seed, fitness_options=fitness_options,
                       feature_options=features, optim_variant=variant, motion=motion)
+    client = connect_scheduler(scheduler) if scheduler else None  # a wrong address fails before any synthesis
     seq = resolve_sequence(source, progress=not json_out)
     if out is None:
         if isinstance(seq, str):  # a dataset spec such as humaneva:/data/HumanEva/S1/Walking_1
@@ -67,7 +68,7 @@ def track(
         else:
             name = seq.name
         out = Path("results") / f"{name}-{algo}-{fps:g}fps"
-    summary = track_runs(seq, cfg, runs, out, resume=resume, workers=workers, scheduler=scheduler,
+    summary = track_runs(seq, cfg, runs, out, resume=resume, workers=workers, scheduler=client,
                          progress=not json_out)
     gap = summary["frame_interval_s"]
     if gap["max"] - gap["min"] > 1e-6:

@@ -12,7 +12,14 @@ import numpy as np
 from swarmpose.errors import ConfigError
 from swarmpose.experiments.suites import Entry, suite
 from swarmpose.metrics import aggregate_runs
-from swarmpose.track.runner import Job, check_results_folder, connect_scheduler, errors_from_summary, run_jobs
+from swarmpose.track.runner import (
+    Job,
+    check_results_folder,
+    close_client,
+    connect_scheduler,
+    errors_from_summary,
+    run_jobs,
+)
 from swarmpose.track.tracker import TrackConfig, config_record, prepare_track
 
 __all__ = ["run_suite", "suite_configs", "comparison_table"]
@@ -55,13 +62,17 @@ def run_suite(name: str, sequences: list[Path], out_dir: Path, *, runs: int = 5,
             planned[cell] = (seq, e, cfg)
     if isinstance(scheduler, str):
         scheduler = connect_scheduler(scheduler)  # before the IK fits: a wrong address fails at once
-    out_dir.mkdir(parents=True, exist_ok=True)
-    for cell, (seq, e, cfg) in planned.items():
-        setup = prepare_track(seq, cfg, cell)  # IK floor once per cell, before the workers start
-        cell.mkdir(parents=True, exist_ok=True)
-        (cell / "config.json").write_text(json.dumps(config_record(setup, runs), indent=1) + "\n")
-        cells.append((e, Path(seq), cell, setup))
-        jobs += [Job(str(seq), asdict(cfg), k, str(cell), resume) for k in range(runs)]
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        for cell, (seq, e, cfg) in planned.items():
+            setup = prepare_track(seq, cfg, cell)  # IK floor once per cell, before the workers start
+            cell.mkdir(parents=True, exist_ok=True)
+            (cell / "config.json").write_text(json.dumps(config_record(setup, runs), indent=1) + "\n")
+            cells.append((e, Path(seq), cell, setup))
+            jobs += [Job(str(seq), asdict(cfg), k, str(cell), resume) for k in range(runs)]
+    except BaseException:
+        close_client(scheduler)
+        raise
     results = run_jobs(jobs, workers=workers, scheduler=scheduler, progress=progress)
     rows = []
     for e, seq, cell, setup in cells:

@@ -31,14 +31,15 @@ Rotations
 ---------
 In the zero pose every model joint frame is aligned with the world, as BVH joint frames are in
 the rest pose (all channels zero). A joint's BVH rotation is its local rotation
-``L = G_parent^T G_joint`` (``G`` from :meth:`BodyModel.forward`), expressed in the BVH axes
-(``A L A^T``), and written as Euler angles in degrees for the channel order (default
-``Zrotation Xrotation Yrotation``: ``L = Rz(z) Rx(x) Ry(y)``, the BVH convention of
-:mod:`swarmpose.io.bvh`). Of the two Euler solutions of each frame the one closest to the previous
-frame is taken and each angle is unwrapped, so the curves are continuous (no 360 degree jumps) for
-animation tools that interpolate them. ``rotation_order="model"`` writes each joint's own
-elementary axes in the model's order instead (the channels then are the model's joint angles,
-with the sign of the axis, and the extra axes are zero; the root's also carry the rest turn of *Rest pose*).
+``L = G_parent^T G_joint`` (``G`` from :meth:`BodyModel.forward`), expressed in the rest pose's BVH
+axes (``B L B^T`` with ``B = Q A``, see *Rest pose*; the root's is ``A G_root B^T``), and written
+as Euler angles in degrees for the channel order (default ``Zrotation Xrotation Yrotation``:
+``L = Rz(z) Rx(x) Ry(y)``, the BVH convention of :mod:`swarmpose.io.bvh`). Of the two Euler
+solutions of each frame the one closest to the previous frame is taken and each angle is
+unwrapped, so the curves are continuous (no 360 degree jumps) for animation tools that
+interpolate them. ``rotation_order="model"`` writes each joint's own elementary axes in the
+model's order instead (the channels then are the model's joint angles, with the sign of the axis,
+and the extra axes are zero; the root's also carry the rest turn of *Rest pose*).
 """
 
 from __future__ import annotations

@@ -75,7 +75,8 @@ class SkeletonMap:
     Attributes
     ----------
     style : str
-        Skeleton style the map was built for (``"cmu"``).
+        Skeleton style the map was built for: ``"cmu"`` (the fields as below) or ``"swarmpose"`` (a file
+        written by ``swarmpose export``: every point is a joint, see :func:`swarmpose_skeleton_map`).
     joint_index : tuple of 15 int
         For each joint of :data:`swarmpose.joints.JOINTS15`, the BVH joint index.
     from_end_site : tuple of 15 bool
@@ -86,11 +87,12 @@ class SkeletonMap:
         First child of the wrist (the hand joint; at the wrist position in the CMU files), or the
         wrist itself when it has no child.
     l_hand_tip, r_hand_tip : int
-        Joint whose end site is the tip of the hand (following first children from ``*_hand``).
+        Joint whose end site is the tip of the hand (following first children from ``*_hand``);
+        ``"swarmpose"``: the hand-tip joint itself.
     neck : int
         First joint of the neck chain (the ``thorax`` joint's BVH joint).
     head : int
-        Head joint (its end site is ``head_top``).
+        Head joint (its end site is ``head_top``; ``"swarmpose"``: the joint below ``head_top``).
     """
 
     style: str
@@ -286,15 +288,16 @@ def swarmpose_skeleton_map(bvh: BvhClip) -> SkeletonMap:
     """Map a skeleton written by ``swarmpose export`` (a body model's joint tree) by joint *name*.
 
     Every name of :data:`swarmpose.joints.JOINTS15` must be a joint (``head_top`` included: the
-    exporter writes it as a joint). Toes and hand tips are the ``l_toe`` / ``l_hand_tip`` joints
-    where the model has them (``full45``), else the ankle and wrist; the head is the ``head`` joint,
-    else ``head_top``'s parent. The rest pose must face +Z with the subject's left on +X, as the
-    exporter writes it by default (``--rest-facing +z``) and as CMU files stand.
+    exporter writes it as a joint). Toes and hand tips are the ``l_toe`` / ``l_hand_tip`` *joints*
+    where the model has them (``full45``), else the ankle and wrist; the exporter's End Sites are
+    made-up bone continuations and never used. The head is the ``head`` joint, else ``head_top``'s
+    parent. The rest pose must stand Y up and face +Z with the subject's left on +X, as the exporter
+    writes it by default and as CMU files stand.
 
     Raises
     ------
     FormatError
-        A name is missing, or the rest pose does not put the left hip on +X.
+        A name is missing, or the rest pose is not Y up facing +Z (``--z-up`` or ``--rest-facing +x``).
     """
     names = list(bvh.joint_names)
     missing = [n for n in JOINTS15 if n not in names]
@@ -306,6 +309,10 @@ def swarmpose_skeleton_map(bvh: BvhClip) -> SkeletonMap:
         return next(idx[c] for c in candidates if c in idx)
 
     rest, _ = bvh.rest_positions()
+    up = rest[idx["head_top"]] - rest[idx["pelvis"]]
+    if not up[1] > 0.9 * np.linalg.norm(up):
+        raise FormatError("swarmpose export whose rest pose is not Y up (written with --z-up?): export it "
+                          "again without --z-up", path=bvh.path)
     left = rest[idx["l_hip"]] - rest[idx["r_hip"]]
     if not left[0] > 0.9 * np.linalg.norm(left):
         raise FormatError("swarmpose export whose rest pose does not face +Z (left hip not on +X): "
@@ -324,13 +331,12 @@ def swarmpose_skeleton_map(bvh: BvhClip) -> SkeletonMap:
 
 
 def auto_skeleton_map(bvh: BvhClip) -> SkeletonMap:
-    """The CMU map when the tree has the CMU structure, else a swarmpose export's map by joint name."""
-    try:
-        return cmu_skeleton_map(bvh)
-    except FormatError as cmu_error:
-        if all(n in bvh.joint_names for n in JOINTS15):
-            return swarmpose_skeleton_map(bvh)
-        raise cmu_error from None
+    """A swarmpose export's map when every HumanEva joint name is a joint (CMU files never use those
+    names; some model trees would also pass the CMU structure test, with ``head_top`` misread), else
+    the CMU map."""
+    if all(n in bvh.joint_names for n in JOINTS15):
+        return swarmpose_skeleton_map(bvh)
+    return cmu_skeleton_map(bvh)
 
 
 #: Skeleton styles by name -> function building a :class:`SkeletonMap` from a :class:`BvhClip`.

@@ -30,7 +30,7 @@ from swarmpose.track.tracker import (
     sequence_location,
 )
 
-__all__ = ["Job", "check_results_folder", "connect_scheduler", "errors_from_summary", "resolve_sequence", "run_job", "run_jobs",
+__all__ = ["Job", "check_results_folder", "close_client", "connect_scheduler", "errors_from_summary", "resolve_sequence", "run_job", "run_jobs",
            "track_runs"]
 
 
@@ -89,6 +89,12 @@ def connect_scheduler(address: str, timeout_s: float = 20.0) -> Any:
         return Client(address, timeout=f"{timeout_s:g}s")
     except (OSError, TimeoutError, ValueError) as exc:
         raise ConfigError(f"cannot reach the Dask scheduler at {address!r}: {exc}") from None
+
+
+def close_client(scheduler: Any) -> None:
+    """Close a client from :func:`connect_scheduler` (nothing for an address string or None)."""
+    if scheduler is not None and not isinstance(scheduler, str):
+        scheduler.close()
 
 
 def run_jobs(jobs: Sequence[Job], *, workers: int | None = None, scheduler: Any = None,
@@ -206,9 +212,13 @@ def track_runs(sequence: str | Path, config: TrackConfig, runs: int, out_dir: Pa
     check_results_folder(out_dir, sequence, config, runs, resume)  # before anything is written
     if isinstance(scheduler, str):
         scheduler = connect_scheduler(scheduler)  # before the IK fit: a wrong address fails at once
-    out_dir.mkdir(parents=True, exist_ok=True)
-    setup = prepare_track(sequence, config, out_dir)  # fits and caches the IK floor once
-    (out_dir / "config.json").write_text(json.dumps(config_record(setup, runs), indent=1) + "\n")
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        setup = prepare_track(sequence, config, out_dir)  # fits and caches the IK floor once
+        (out_dir / "config.json").write_text(json.dumps(config_record(setup, runs), indent=1) + "\n")
+    except BaseException:
+        close_client(scheduler)
+        raise
     jobs = [Job(str(sequence), asdict(config), k, str(out_dir), resume) for k in range(runs)]
     if progress and scheduler is None and (workers == 1 or runs == 1):
         # in-process: one bar per run, by frames

@@ -263,9 +263,11 @@ def prepare_track(sequence_path: str | Path, config: TrackConfig, out_dir: Path 
         spec = load_spec(config.model)
         frames = np.asarray(seq.subsample(config.fps), dtype=np.int64)
         if config.fitness_kind in MARKER_FITNESS and seq.markers(int(frames[0])) is None:
+            from swarmpose.datasets import is_dataset_spec
+
+            hint = "" if is_dataset_spec(sequence_path) else " (synthesise it with `swarmpose synth --markers joints15`)"
             raise DataError(f"{sequence_path}: the sequence has no 2D marker detections, which the "
-                            f"{config.fitness_kind} fitness needs (synthesise it with `swarmpose synth "
-                            "--markers joints15`)")
+                            f"{config.fitness_kind} fitness needs{hint}")
         gt = np.asarray(seq.gt_joints)[frames]
         times = np.asarray(seq.frame_times)[frames]
         key = _ik_cache_key(sequence_path, config)
