@@ -9,7 +9,7 @@ import numpy as np
 import typer
 
 from swarmpose.cli.app import app
-from swarmpose.cli.common import console, escape, fail_on_user_error, print_json
+from swarmpose.cli.common import console, err_console, escape, fail_on_user_error, print_json
 
 
 @app.command()
@@ -58,8 +58,6 @@ def info(
         print_json(data)
         return
     from rich.table import Table
-
-    from swarmpose.cli.common import err_console
 
     for w in warnings:
         err_console.print(f"[bold yellow]warning:[/bold yellow] {escape(w)}", highlight=False)

@@ -94,7 +94,8 @@ def run_suite(name: str, sequences: list[Path], out_dir: Path, *, runs: int = 5,
 
 
 def comparison_table(report: dict[str, Any]) -> str:
-    lines = [f"# Suite `{report['suite']}` ({report['runs']} run{'' if report['runs'] == 1 else 's'} per entry, seed {report['seed']})", "",
+    runs = f"{report['runs']} run{'' if report['runs'] == 1 else 's'}"
+    lines = [f"# Suite `{report['suite']}` ({runs} per entry, seed {report['seed']})", "",
              "| sequence | entry | eval/frame | D_mean mm (± over runs) | worst run D_mean | D_max mm | IK floor mm "
              "| MMTA % | frames/s |",
              "|---|---|---:|---:|---:|---:|---:|---:|---:|"]

@@ -303,7 +303,7 @@ def swarmpose_skeleton_map(bvh: BvhClip) -> SkeletonMap:
     missing = [n for n in JOINTS15 if n not in names]
     if missing:
         raise FormatError(f"skeleton is not a swarmpose export: no joint named {', '.join(missing)}", path=bvh.path)
-    idx = {n: names.index(n) for n in names}
+    idx = {n: i for i, n in enumerate(names)}
 
     def first(*candidates: str) -> int:
         return next(idx[c] for c in candidates if c in idx)
@@ -326,7 +326,7 @@ def swarmpose_skeleton_map(bvh: BvhClip) -> SkeletonMap:
         l_hand=idx["l_wrist"], r_hand=idx["r_wrist"],
         l_hand_tip=first("l_hand_tip", "l_wrist"), r_hand_tip=first("r_hand_tip", "r_wrist"),
         neck=first("neck", "thorax"),
-        head=idx["head"] if "head" in idx else max(int(bvh.parents[head_top]), 0),
+        head=idx.get("head", max(int(bvh.parents[head_top]), 0)),
     )
 
 

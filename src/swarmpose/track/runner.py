@@ -30,8 +30,8 @@ from swarmpose.track.tracker import (
     sequence_location,
 )
 
-__all__ = ["Job", "check_results_folder", "close_client", "connect_scheduler", "errors_from_summary", "resolve_sequence", "run_job", "run_jobs",
-           "track_runs"]
+__all__ = ["Job", "check_results_folder", "close_client", "connect_scheduler", "errors_from_summary",
+           "resolve_sequence", "run_job", "run_jobs", "track_runs"]
 
 
 @dataclass(frozen=True)
