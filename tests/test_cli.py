@@ -113,3 +113,29 @@ def test_paths_with_brackets_and_file_system_errors_are_reported_as_they_are(moc
     for scale in ("1e-4", "inf"):
         res = runner.invoke(app, ["show", str(tmp_path), "--scale", scale])
         assert res.exit_code == 2 and "--scale must lie in [0.05, 8]" in " ".join(res.stderr.split())
+
+
+def test_compare_list_shows_the_entries_without_running(tmp_path: Path):
+    """`compare SUITE --list` prints the suite's validated entries (with the optimiser's evaluations per frame)
+    and the number of jobs, and writes nothing; without SUITE every suite; `compare` alone asks for one."""
+    from swarmpose.experiments.suites import SUITES, suite
+
+    runner = CliRunner()
+    res = runner.invoke(app, ["compare", "thesis-partitions", "--list", "--runs", "3", "--out", str(tmp_path / "o"),
+                              "--json"])
+    assert res.exit_code == 0, res.output
+    data = json.loads(res.stdout)
+    (item,) = data["suites"]
+    assert item["suite"] == "thesis-partitions" and item["jobs"] == 5 * 3
+    assert [e["label"] for e in item["entries"]] == [e.label for e in suite("thesis-partitions")]
+    evals = {e["algo"]: e["evals_per_frame"] for e in item["entries"]}
+    assert evals["sppso"] == evals["hard2"] == evals["pso-global"] == 1000 and evals["hpso12"] == 7200  # thesis Fig. 6.14
+    assert not (tmp_path / "o").exists()
+    budget = json.loads(runner.invoke(app, ["compare", "thesis-budget", "--list", "--json"]).stdout)
+    assert [e["evals_per_frame"] for e in budget["suites"][0]["entries"]] == [1000, 2000, 4000]  # variants applied
+    every = json.loads(runner.invoke(app, ["compare", "--list", "--json"]).stdout)
+    assert [s["suite"] for s in every["suites"]] == list(SUITES)
+    text = runner.invoke(app, ["compare", "markers", "--list"])
+    assert text.exit_code == 0 and "Sharifi" in text.stdout and "apf-dr05" in text.stdout
+    res = runner.invoke(app, ["compare", "--json"])
+    assert res.exit_code == 2 and "name a suite" in json.loads(res.stdout)["error"]

@@ -118,6 +118,12 @@ def test_cli_synth_json_and_show(walk_clip_path, short_walk: SynthReport, tmp_pa
     assert sheet.shape[1] == 3 * 644 and sheet.shape[0] > 4 * 484
     res = runner.invoke(app, ["show", str(short_walk.path), "--frame", "99"])
     assert res.exit_code == 2 and "outside" in res.stderr
+    res = runner.invoke(app, ["show", str(short_walk.path), "--frame", "2", "--out", str(png), "--scale", "0.5",
+                              "--json"])
+    assert res.exit_code == 0, res.output
+    data = json.loads(res.stdout)
+    assert data["path"] == str(png) and data["frame"] == 2
+    assert (data["height"], data["width"]) == cv2.imread(str(png)).shape[:2] and data["width"] == 3 * 644 // 2
 
 
 def test_cli_synth_albedo(walk_clip_path, tmp_path):
@@ -143,3 +149,27 @@ def test_cli_synth_albedo(walk_clip_path, tmp_path):
         assert (a - b)[mask].max() > 60 and (a - b)[mask].min() < -20
     res = runner.invoke(app, [*args, "--out", str(tmp_path / "bad"), "--albedo", "shrt=0.5"])
     assert res.exit_code == 2 and "shrt=0.5" in res.stderr and "shoes" in res.stderr
+
+
+def test_cli_synth_names_the_options(walk_clip_path, tmp_path):
+    """Bad settings are reported with the flag the user typed, before anything is written; an --fps above the
+    clip's capture rate is noted on stderr (the frames between captured ones are interpolated)."""
+    runner = CliRunner()
+    base = ["synth", str(walk_clip_path), "--max-frames", "1", "--no-measure", "--no-progress", "--json"]
+    for flag, value in (("--dropout", "2"), ("--false-per-view", "-1"), ("--marker-noise-px", "nan"),
+                        ("--clothing-mm", "500"), ("--noise-sigma", "-3"), ("--markers", "all")):
+        out = tmp_path / flag.strip("-")
+        res = runner.invoke(app, [*base, "--out", str(out), flag, value])
+        assert res.exit_code == 2, (flag, res.output)
+        message = json.loads(res.stdout)["error"]
+        assert message.startswith(flag) and "Settings" not in message, message
+        assert not out.exists()
+    res = runner.invoke(app, [*base, "--out", str(tmp_path / "a"), "--albedo", "shirt=3"])
+    assert res.exit_code == 2 and json.loads(res.stdout)["error"].startswith("--albedo shirt must be in [0, 1]")
+    res = runner.invoke(app, [*base, "--out", str(tmp_path / "f"), "--fps", "0"])
+    assert res.exit_code == 2 and "--fps" in res.stderr
+    res = runner.invoke(app, [*base, "--out", str(tmp_path / "up"), "--fps", "240"])
+    assert res.exit_code == 0, res.output
+    assert "captured at 120 Hz" in res.stderr and "interpolated" in res.stderr
+    res = runner.invoke(app, [*base, "--out", str(tmp_path / "down"), "--fps", "60"])
+    assert res.exit_code == 0 and "interpolated" not in res.stderr

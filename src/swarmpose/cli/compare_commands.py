@@ -14,10 +14,10 @@ from swarmpose.cli.demo import DEFAULT_CLIP
 @app.command()
 @fail_on_user_error
 def compare(
-    suite: str = typer.Argument(..., help="thesis-apf, thesis-partitions, thesis-budget, thesis-swarm, "
-                                          "thesis-fitness, markers (Sharifi et al.'s epipolar "
-                                          "score) or markers-reprojection (the same comparisons with "
-                                          "the reprojection fitness)."),
+    suite: str = typer.Argument(None, help="thesis-apf, thesis-partitions, thesis-budget, thesis-swarm, "
+                                           "thesis-fitness, markers (Sharifi et al.'s epipolar "
+                                           "score) or markers-reprojection (the same comparisons with "
+                                           "the reprojection fitness). With --list it may be left out."),
     sources: list[str] = typer.Option(None, "--clip", help="Sequence folders or BVH clips (repeatable); "
                                                             "default: the shared walking clip."),
     runs: int = typer.Option(5, min=1, help="Runs per entry."),
@@ -27,12 +27,23 @@ def compare(
     workers: int = typer.Option(None, min=1, help="Parallel local processes (default: one per core)."),
     scheduler: str = typer.Option(None, help="Dask scheduler address: run the jobs on that cluster instead."),
     resume: bool = typer.Option(False, help="Continue interrupted runs."),
+    list_only: bool = typer.Option(False, "--list", help="Only list the suite's entries (every suite's without "
+                                                          "SUITE): algorithm, frame rate, variant, fitness, "
+                                                          "evaluations per frame, paper; nothing is run."),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object with the table's rows."),
 ) -> None:
     """Run an experiment suite (entries × clips × runs in parallel) and write a comparison table."""
+    from swarmpose.errors import ConfigError
     from swarmpose.experiments.run import run_suite, suite_configs
+    from swarmpose.experiments.suites import SUITES
     from swarmpose.track.runner import connect_scheduler, resolve_sequence
 
+    if list_only:
+        _list_suites([suite] if suite else list(SUITES), seed=seed, downsample=downsample, runs=runs,
+                     n_clips=len(sources or [None]), json_out=json_out)
+        return
+    if suite is None:
+        raise ConfigError(f"name a suite: {', '.join(SUITES)} (`swarmpose compare --list` shows their entries)")
     suite_configs(suite, seed=seed, downsample=downsample)  # an unknown suite or a bad setting fails before any clip is synthesised
     client = connect_scheduler(scheduler) if scheduler else None  # a wrong address fails before any synthesis
     seqs = [resolve_sequence(s, progress=not json_out) for s in (sources or [str(DEFAULT_CLIP)])]
@@ -44,3 +55,37 @@ def compare(
         return
     console.print((out / "comparison.md").read_text(), markup=False, highlight=False)
     console.print(f"written: {out / 'comparison.md'} and {out / 'comparison.json'}", markup=False, highlight=False)
+
+
+def _list_suites(names: list[str], *, seed: int, downsample: int, runs: int, n_clips: int, json_out: bool) -> None:
+    """Print the entries of the named suites (validated as a run would validate them) without running."""
+    from rich.table import Table
+
+    from swarmpose.body.model import load_model
+    from swarmpose.experiments.run import suite_configs
+
+    listing = []
+    for name in names:
+        entries = []
+        for e, cfg in suite_configs(name, seed=seed, downsample=downsample):
+            evals = int(cfg.optimizer(load_model(cfg.model, None, cfg.variant)).evals_per_frame)
+            entries.append({"label": e.label, "algo": e.algo, "fps": e.fps, "variant": e.variant,
+                            "fitness": cfg.fitness_kind, "fitness_options": e.fitness_options,
+                            "evals_per_frame": evals, "reference": e.reference})
+        listing.append({"suite": name, "entries": entries, "jobs": len(entries) * runs * n_clips})
+    if json_out:
+        print_json({"suites": listing, "runs": runs, "clips": n_clips})
+        return
+    for item in listing:
+        table = Table(title=f"{item['suite']}: {len(item['entries'])} entries x {n_clips} "
+                            f"clip{'' if n_clips == 1 else 's'} x {runs} run{'' if runs == 1 else 's'} = "
+                            f"{item['jobs']} tracking jobs", title_justify="left")
+        for col in ("entry", "algorithm", "fps", "variant", "fitness", "evals/frame"):
+            table.add_column(col, justify="right" if col in ("fps", "evals/frame") else "left")
+        for e in item["entries"]:
+            fitness = e["fitness"] + (f" ({e['fitness_options']})" if e["fitness_options"] else "")
+            table.add_row(e["label"], e["algo"], f"{e['fps']:g}", e["variant"] or "-", fitness,
+                          str(e["evals_per_frame"]))
+        console.print(table)
+        for ref in dict.fromkeys(e["reference"] for e in item["entries"]):
+            console.print(f"  paper: {ref}", markup=False, highlight=False)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Annotated
 
@@ -9,12 +10,13 @@ import numpy as np
 import typer
 
 from swarmpose.cli.app import app
-from swarmpose.cli.common import console, escape, fail_on_user_error, print_json
+from swarmpose.cli.common import console, err_console, escape, fail_on_user_error, print_json
+from swarmpose.errors import ConfigError
 
 
 def parse_albedo(text: str) -> dict[str, float]:
     """``"shirt=0.6,trousers=0.15"`` over :class:`~swarmpose.synth.BodySettings`'s default albedos."""
-    from swarmpose.errors import ConfigError, option_items
+    from swarmpose.errors import option_items
     from swarmpose.synth import BodySettings
     from swarmpose.synth.body import MATERIALS
 
@@ -28,6 +30,40 @@ def parse_albedo(text: str) -> dict[str, float]:
         except ValueError:
             raise ConfigError(f"--albedo: {key}={value!r} is not a number") from None
     return out
+
+
+#: The settings' field names as the user typed them on the command line.
+_SYNTH_FLAGS = {
+    "MarkerSettings.markers": "--markers",
+    "MarkerSettings.dropout": "--dropout",
+    "MarkerSettings.false_per_view": "--false-per-view",
+    "MarkerSettings.noise_px": "--marker-noise-px",
+    "BodySettings.clothing_mm": "--clothing-mm",
+    "BodySettings.albedo": "--albedo",
+    "SceneSettings.noise_sigma": "--noise-sigma",
+}
+
+
+def option_names(message: str) -> str:
+    """A settings error as the command line says it: ``MarkerSettings.dropout`` -> ``--dropout``."""
+    message = re.sub(r"BodySettings\.albedo\['(\w+)'\]", r"--albedo \1", message)
+    for field_name, flag in _SYNTH_FLAGS.items():
+        message = message.replace(field_name, flag)
+    return message
+
+
+def _note_upsampling(clip: Path, fps: float) -> None:
+    """Say on stderr when ``--fps`` is above the clip's capture rate: frames between captured ones are
+    interpolated (joint rotations slerped), not measured."""
+    from swarmpose.io.bvh import read_bvh
+
+    try:
+        rate = read_bvh(clip).frame_rate
+    except Exception:  # noqa: BLE001 - synthesize() reads the file again and reports its errors itself
+        return
+    if fps > rate * (1 + 1e-6):
+        err_console.print(f"note: {escape(str(clip))} is captured at {rate:g} Hz; at --fps {fps:g} the frames "
+                          "between captured ones are interpolated, not measured", highlight=False)
 
 
 @app.command()
@@ -64,11 +100,17 @@ def synth(
     """
     from swarmpose.synth import BodySettings, MarkerSettings, SceneSettings, synthesize
 
-    msettings = MarkerSettings(markers=markers, dropout=dropout, false_per_view=false_per_view,
-                               noise_px=marker_noise, occlusion=not no_occlusion)
-    report = synthesize(clip, out, fps=fps, seed=seed, markers=msettings,
-                        body=BodySettings(clothing_mm=clothing, albedo=parse_albedo(albedo)),
-                        scene=SceneSettings(noise_sigma=noise),
+    try:
+        msettings = MarkerSettings(markers=markers, dropout=dropout, false_per_view=false_per_view,
+                                   noise_px=marker_noise, occlusion=not no_occlusion)
+        body = BodySettings(clothing_mm=clothing, albedo=parse_albedo(albedo))
+        scene = SceneSettings(noise_sigma=noise)
+    except ConfigError as exc:
+        raise ConfigError(option_names(str(exc))) from None
+    if not (np.isfinite(fps) and fps > 0):
+        raise ConfigError(f"--fps must be a positive frame rate, got {fps!r}")
+    _note_upsampling(clip, fps)
+    report = synthesize(clip, out, fps=fps, seed=seed, markers=msettings, body=body, scene=scene,
                         max_frames=max_frames, fs_stride=fs_stride, measure=not no_measure, overwrite=force,
                         progress=progress)
     data = report.to_dict()
@@ -110,7 +152,6 @@ def contact_sheet(path: Path, frame: int) -> np.ndarray:
     """
     import cv2
 
-    from swarmpose.errors import ConfigError
     from swarmpose.features import compute_features
     from swarmpose.io.sequence import open_sequence
 
@@ -178,11 +219,13 @@ def show(
     out: Annotated[Path | None, typer.Option("--out", help="PNG to write (default: <DIR>/contact_NNNNNN.png, "
                                                            "the frame index in 6 digits).")] = None,
     scale: Annotated[float, typer.Option(help="Resize the sheet by this factor (0.05 to 8).")] = 1.0,
+    json_out: Annotated[bool, typer.Option("--json", help='Print one JSON object {"path", "frame", "width", '
+                                                          '"height"} (the sheet written and its size in pixels).')] = False,
 ) -> None:
     """Write a PNG contact sheet of one frame: every view with its markers, silhouette and edge map."""
     import cv2
 
-    from swarmpose.errors import ConfigError, DataError
+    from swarmpose.errors import DataError
 
     if out is not None and out.suffix.lower() not in (".png", ".jpg", ".jpeg"):
         raise ConfigError(f"--out {out}: the contact sheet is written as .png (or .jpg), not {out.suffix or 'a file without suffix'}")
@@ -195,4 +238,7 @@ def show(
     out.parent.mkdir(parents=True, exist_ok=True)
     if not cv2.imwrite(str(out), sheet):
         raise DataError(f"{out}: cannot write the PNG")
+    if json_out:
+        print_json({"path": str(out), "frame": int(frame), "width": int(sheet.shape[1]), "height": int(sheet.shape[0])})
+        return
     console.print(str(out), markup=False, highlight=False)
