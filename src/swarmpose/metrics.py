@@ -20,7 +20,7 @@ import numpy as np
 from swarmpose.errors import ShapeError
 from swarmpose.joints import JOINTS15
 
-__all__ = ["TrackErrors", "joint_distances", "track_errors", "aggregate_runs", "MMTA_DELTA_MM"]
+__all__ = ["TrackErrors", "joint_distances", "valid_frames", "track_errors", "aggregate_runs", "MMTA_DELTA_MM"]
 
 MMTA_DELTA_MM = 100.0
 
@@ -38,7 +38,7 @@ def joint_distances(estimate: np.ndarray, truth: np.ndarray) -> np.ndarray:
 class TrackErrors:
     """Errors of one tracked run (mm unless noted)."""
 
-    d_per_frame: np.ndarray  # (T,)
+    d_per_frame: np.ndarray  # (T,); NaN at frames without valid ground truth
     d_mean: float
     d_max: float
     d_std: float
@@ -54,23 +54,52 @@ class TrackErrors:
         return d
 
 
+def valid_frames(truth: np.ndarray) -> np.ndarray:
+    """``(T,)`` bool: frames whose ground truth is finite for every joint (HumanEva marks invalid frames
+    with NaN rows; they are not scored)."""
+    return np.isfinite(np.asarray(truth, dtype=np.float64)).all(axis=(1, 2))
+
+
 def track_errors(estimate: np.ndarray, truth: np.ndarray, delta_mm: float = MMTA_DELTA_MM) -> TrackErrors:
-    """All error measures of one run; see the module docstring."""
-    dist = joint_distances(estimate, truth)
+    """All error measures of one run; see the module docstring.
+
+    Frames whose ground truth is not finite are not scored: ``d_per_frame`` is NaN there and every other
+    measure is taken over the valid frames only.
+
+    Raises
+    ------
+    ShapeError
+        ``estimate`` and ``truth`` are not both ``(T, 15, 3)``.
+    ValueError
+        ``delta_mm`` is not a positive distance, no frame has valid ground truth, or the estimate is not
+        finite at a frame that is scored.
+    """
+    if not (np.isfinite(delta_mm) and delta_mm > 0):
+        raise ValueError(f"delta_mm must be a positive distance in mm, got {delta_mm!r}")
+    dist_all = joint_distances(estimate, truth)
+    ok = valid_frames(truth)
+    if not ok.any():
+        raise ValueError(f"no frame to score: the ground truth of all {len(ok)} frames is missing or not finite")
+    dist = dist_all[ok]
+    if not np.isfinite(dist).all():
+        bad = np.flatnonzero(ok)[~np.isfinite(dist).all(axis=1)]
+        raise ValueError(f"the estimate is not finite at {len(bad)} scored frame(s), first at index {int(bad[0])}")
     d = dist.mean(axis=1)
+    d_per_frame = np.full(len(ok), np.nan)
+    d_per_frame[ok] = d
     matched = dist < delta_mm
     share = matched.mean(axis=1)
     n_match = matched.sum(axis=1)
     mmtp_frame = np.where(n_match > 0, np.where(matched, dist, 0.0).sum(axis=1) / np.maximum(n_match, 1), delta_mm)
     return TrackErrors(
-        d_per_frame=d,
+        d_per_frame=d_per_frame,
         d_mean=float(d.mean()),
         d_max=float(d.max()),
         d_std=float(d.std()),
         per_joint={n: float(v) for n, v in zip(JOINTS15, dist.mean(axis=0), strict=True)},
         mmta=float(share.mean()),
         mmtp=float(mmtp_frame.mean()),
-        mu=float(dist.mean(axis=1).mean()),
+        mu=float(d.mean()),
         sigma=float(dist.std(axis=1).mean()),
     )
 

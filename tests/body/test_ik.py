@@ -92,3 +92,18 @@ def test_thesis_variant_keeps_the_torso_top_at_the_shoulders(walk_clip_path, spe
     o = model.subject.offsets
     shoulder_z = 0.5 * (o["l_thorax_to_shoulder"][2] + o["r_thorax_to_shoulder"][2]) + o["spine_to_thorax"][2]
     assert top[2] == pytest.approx(shoulder_z + model.subject.cones["l_upper_arm"][0], abs=1e-6)
+
+
+def test_the_ik_floor_is_the_best_fit_not_the_smooth_one(walk):
+    """The smooth fit (damping, rest prior: the tracker's start pose) is polished per frame on the joints
+    alone; the floor is the polished fit's error, lower, and its poses stay valid and near the smooth ones."""
+    clip, model, res = walk
+    smooth_err = np.linalg.norm(model.joints15(res.params) - clip.joints, axis=-1)
+    np.testing.assert_allclose(res.joint_error_mm, np.linalg.norm(model.joints15(res.floor_params) - clip.joints,
+                                                                  axis=-1))
+    assert (res.frame_error_mm <= smooth_err.mean(axis=1) + 1e-9).all()
+    assert res.floor_mean_mm < 0.6 * smooth_err.mean()  # walk at 30 fps: about 0.9 against 2.1 mm
+    assert HardPriors(model).valid(res.floor_params).all()
+    assert np.abs(res.floor_params - res.params)[:, model.is_rotation].max() < 0.5  # radians
+    quick = fit_ik(model, clip.joints[:5], polish=False)
+    np.testing.assert_array_equal(quick.floor_params, quick.params)

@@ -88,3 +88,35 @@ def test_an_unknown_suite_fails_before_any_clip_is_synthesised(tmp_path: Path, m
     bad = CliRunner().invoke(app, ["compare", "thesis-apf", "--downsample", "3", "--out", str(tmp_path / "cmp")])
     assert bad.exit_code == 2 and "downsample must be 1, 2, 4 or 8" in " ".join(bad.output.split())
     assert not (tmp_path / "cache").exists() and not (tmp_path / "cmp").exists()
+
+
+def test_report_with_frames_without_ground_truth(results_builder, tmp_path: Path):
+    """HumanEva marks invalid ground truth with NaN rows: such frames are not scored, and the report (plots,
+    overlays of every frame, summary tables) and a summary recomputed from the joints agree with the
+    numbers track wrote, over the valid frames only."""
+    from swarmpose.metrics import track_errors
+
+    (tmp_path / "gaps").mkdir()
+    res_dir, _ = results_builder(tmp_path / "gaps", invalid=(2,))
+    out = CliRunner().invoke(app, ["report", str(res_dir), "--frames", "6", "--json"])
+    assert out.exit_code == 0, out.output
+    data = json.loads(out.stdout)
+    assert len(data["overlays"]) == 6 and len(data["figures"]) == 2
+    md = Path(data["summary"]).read_text()
+    assert " nan" not in md.lower() and "| nan" not in md.lower()
+    ik_row = next(line for line in md.splitlines() if line.startswith("| IK floor"))
+    assert "100.0" in ik_row and ik_row.count("–") == 2  # MMTA over the scored frames; MMTP, frames/s: none
+    per_joint = [line for line in md.splitlines() if line.startswith("| pelvis")]
+    assert per_joint and "–" not in per_joint[0]
+    stored = load_results(res_dir)
+    for f in [*res_dir.glob("run_*/summary.json"), res_dir / "summary.json"]:
+        f.unlink()
+    again = load_results(res_dir)
+    assert again.summary["recomputed"]
+    for key in ("d_mean_mm", "d_max_mm", "mmta", "mmtp_mm", "ik_floor_mm"):
+        assert np.isclose(again.summary[key], stored.summary[key]), key
+    assert again.summary["worst"]["run"] == stored.summary["worst"]["run"]
+    r = again.runs[0]
+    e = track_errors(r.joints, r.gt_joints)
+    assert np.isnan(e.d_per_frame[2]) and np.isfinite(np.delete(e.d_per_frame, 2)).all()
+    assert np.isclose(e.d_mean, np.delete(e.d_per_frame, 2).mean())

@@ -109,7 +109,7 @@ def ik(
     body = BodyModel(spec, subject_from_clip(spec, c), "thesis" if "thesis" in spec.variants else None)
     with tqdm(total=c.frames, desc=f"IK {c.name}", unit="frame", file=sys.stderr, disable=json_out) as bar:
         res = fit_ik(body, c.joints, progress=lambda _k: bar.update(1))
-    valid = HardPriors(body).valid(res.params)
+    valid = HardPriors(body).valid(res.floor_params)
     per_joint = res.joint_error_mm.mean(axis=0)
     data = {
         "clip": str(clip),
@@ -126,8 +126,8 @@ def ik(
         if out.suffix != ".npz":
             out = out.with_name(out.name + ".npz")  # what numpy would write anyway; say so
         out.parent.mkdir(parents=True, exist_ok=True)
-        np.savez(out, params=res.params, joints=body.joints15(res.params), gt_joints=c.joints,
-                 joint_error_mm=res.joint_error_mm, frame_times=c.frame_times,
+        np.savez(out, params=res.floor_params, joints=body.joints15(res.floor_params), gt_joints=c.joints,
+                 joint_error_mm=res.joint_error_mm, smooth_params=res.params, frame_times=c.frame_times,
                  param_names=np.array(body.param_names), world_from_source=c.world_from_source)
         body.subject.save(out.with_suffix(".subject.json"))
         data["out"] = str(out)

@@ -244,8 +244,10 @@ def _title(res: Results, run: int, i: int) -> str:
     r = res.run(run)
     algo = str(res.config.get("algo", "")).upper()
     fps = f" {res.fps:g} fps" if res.fps else ""
+    d = float(r.d_per_frame[i])
+    err = f"D = {d:.1f} mm" if np.isfinite(d) else "no valid ground truth"
     return (f"frame {int(r.frame_indices[i])}   t = {float(r.frame_times[i]):.3f} s   "
-            f"D = {float(r.d_per_frame[i]):.1f} mm      {algo}{fps}, run {run}")
+            f"{err}      {algo}{fps}, run {run}")
 
 
 class _FrameSource:

@@ -5,7 +5,8 @@ The layout (the contract between the tracker and the report)::
     RESULTS_DIR/
       config.json     settings, seeds, sequence path, frames, evaluations per frame, IK floor, versions
       subject.json    the body model's subject (limb lengths, cone sizes)
-      ik.npz          params (T, D), joint_error_mm (T, 15), frame_indices (T,): the IK floor per frame
+      ik.npz          params (T, D) (the smooth IK fit, the start pose), joint_error_mm (T, 15) and
+                      floor_params (T, D) (the best fit: the IK floor per frame), frame_indices (T,)
       summary.json    errors aggregated over the runs
       run_000/        one folder per run:
         track.npz     params, joints, scores, evaluations, seconds, frame_indices, d_per_frame, param_names
@@ -30,6 +31,7 @@ import numpy as np
 
 from swarmpose.errors import DataError, FormatError
 from swarmpose.joints import JOINTS15
+from swarmpose.metrics import valid_frames
 
 __all__ = ["RunData", "Results", "load_results", "as_results"]
 
@@ -75,8 +77,18 @@ class RunData:
 
     @property
     def joint_distances(self) -> np.ndarray:
-        """Distance of every joint in every frame, ``(T, 15)`` mm."""
+        """Distance of every joint in every frame, ``(T, 15)`` mm (NaN where the ground truth is invalid)."""
         return np.linalg.norm(self.joints - self.gt_joints, axis=-1)
+
+    @property
+    def valid(self) -> np.ndarray:
+        """``(T,)`` frames with valid ground truth: the only ones scored."""
+        return valid_frames(self.gt_joints)
+
+    @property
+    def per_joint_mm(self) -> np.ndarray:
+        """Mean error of each joint over the scored frames, ``(15,)`` mm."""
+        return self.joint_distances[self.valid].mean(axis=0)
 
     @property
     def frames_per_s(self) -> float:
@@ -154,7 +166,7 @@ class Results:
 
     def per_joint_by_run(self) -> np.ndarray:
         """Mean error of each joint in each run, ``(R, 15)`` mm."""
-        return np.stack([r.joint_distances.mean(axis=0) for r in self.runs])
+        return np.stack([r.per_joint_mm for r in self.runs])
 
     # ------------------------------------------------------------------ model and sequence
     @cached_property
@@ -292,13 +304,16 @@ def _recompute_summary(config: dict[str, Any], runs: list[RunData], ik_floor: fl
         "ik_floor_mm": ik_floor,
         "mmta": agg["mmta"],
         "mmtp_mm": agg["mmtp"],
+        "mu_mm": agg["mu"],
+        "sigma_mm": agg["sigma"],
         "frames_per_s": float(np.nanmean([r.frames_per_s for r in runs])),
         "frames": int(runs[0].joints.shape[0]),
         "worst": {"run": worst.run, "d_mean_mm": agg["worst"]["d_mean"], "d_max_mm": agg["worst"]["d_max"],
                   "mmta": agg["worst"]["mmta"]},
         "per_joint_mm": agg["per_joint"],
         "per_run": [{"run": r.run, "d_mean_mm": e.d_mean, "d_max_mm": e.d_max, "mmta": e.mmta,
-                     "mmtp_mm": e.mmtp, "frames_per_s": r.frames_per_s} for r, e in zip(runs, errs, strict=True)],
+                     "mmtp_mm": e.mmtp, "sigma_mm": e.sigma, "frames_per_s": r.frames_per_s}
+                    for r, e in zip(runs, errs, strict=True)],
         "recomputed": True,
     }
 
@@ -362,14 +377,14 @@ def load_results(results_dir: str | os.PathLike[str]) -> Results:
         if ik_err.shape != (T, 15):
             raise FormatError(f"joint_error_mm has shape {ik_err.shape}, expected ({T}, 15) like the runs",
                               path=ik_file)
-    ik_floor = None if ik_err is None else float(ik_err.mean())
+    ik_floor = None if ik_err is None else float(np.nanmean(ik_err.mean(axis=1)))  # as track: valid frames only
     summary_file = root / "summary.json"
     if summary_file.is_file():
         summary = _read_json(summary_file)
     else:
         summary = _recompute_summary(config, runs, ik_floor if ik_floor is not None else config.get("ik_floor_mm"))
     summary.setdefault("per_joint_mm", {n: float(v) for n, v in
-                                        zip(JOINTS15, np.mean([r.joint_distances.mean(axis=0) for r in runs],
-                                                              axis=0), strict=True)})
+                                        zip(JOINTS15, np.mean([r.per_joint_mm for r in runs], axis=0),
+                                            strict=True)})
     return Results(path=root, config=config, summary=summary, runs=runs, ik_joint_error_mm=ik_err,
                    ik_params=ik_params, skipped=skipped)

@@ -198,7 +198,8 @@ def write_summary(
           "truth; D_mean and D_max are its mean and maximum over the frames. MMTA is the share of joints "
           f"within {MMTA_DELTA_MM:g} mm of the ground truth and MMTP their mean distance (Sharifi et al.). "
           "The IK floor is the error of the model's best fit to the ground truth: no tracker using this "
-          "model can do better (thesis sec. 6.4).", ""]
+          "model can do better (thesis sec. 6.4). Frames without valid ground truth are not scored. With "
+          "several runs, D_max is the mean of the runs' maxima.", ""]
     trows = [[str(r["run"]), _f(r["d_mean_mm"]), _f(r["d_max_mm"]), _pct(r["mmta"]), _f(r["mmtp_mm"]),
               _f(r["frames_per_s"], ".2f")] for r in rows]
     trows.append(["**mean**", _f(s.get("d_mean_mm")), _f(s.get("d_max_mm")), _pct(s.get("mmta")),
@@ -215,11 +216,12 @@ def write_summary(
     ik = res.ik_frame_error_mm
     ik_mean = s.get("ik_floor_mm", cfg.get("ik_floor_mm"))
     if ik_mean is None and ik is not None:
-        ik_mean = float(ik.mean())
+        ik_mean = float(np.nanmean(ik))
     if ik_mean is not None or ik is not None:
         ik_joint = res.ik_joint_error_mm
+        ik_joint = None if ik_joint is None else ik_joint[np.isfinite(ik_joint).all(axis=1)]  # scored frames
         mmta_ik = None if ik_joint is None else float((ik_joint < MMTA_DELTA_MM).mean())
-        trows.append(["IK floor", _f(ik_mean), _f(None if ik is None else float(ik.max())), _pct(mmta_ik),
+        trows.append(["IK floor", _f(ik_mean), _f(None if ik is None else float(np.nanmax(ik))), _pct(mmta_ik),
                       "–", "–"])
     L += _table(["run", "D_mean (mm)", "D_max (mm)", "MMTA (%)", "MMTP (mm)", "frames/s"], trows) + [""]
     if len(rows) > 1:
@@ -231,7 +233,7 @@ def write_summary(
     # ---------------------------------------------------------------- per joint
     per_run = res.per_joint_by_run()
     pj = s.get("per_joint_mm") or {}
-    ik_pj = None if res.ik_joint_error_mm is None else res.ik_joint_error_mm.mean(axis=0)
+    ik_pj = None if res.ik_joint_error_mm is None else np.nanmean(res.ik_joint_error_mm, axis=0)
     jrows = []
     for j, name in enumerate(JOINTS15):
         mean = pj.get(name, float(per_run[:, j].mean()))

@@ -244,6 +244,8 @@ def track_runs(sequence: str | Path, config: TrackConfig, runs: int, out_dir: Pa
         "ik_floor_mm": setup.ik_floor_mm,
         "mmta": agg["mmta"],
         "mmtp_mm": agg["mmtp"],
+        "mu_mm": agg["mu"],  # Sharifi et al. eq. 19 (equals d_mean_mm)
+        "sigma_mm": agg["sigma"],  # eq. 19: per-frame spread over the 15 joints, averaged over frames
         "frames_per_s": float(np.mean([r["frames_per_s"] for r in per_run])),
         "frames": int(len(setup.frame_indices)),
         "frame_interval_s": _intervals(setup.frame_times),
@@ -252,7 +254,8 @@ def track_runs(sequence: str | Path, config: TrackConfig, runs: int, out_dir: Pa
         "d_mean_std_over_runs": agg["d_mean_std_over_runs"],
         "per_joint_mm": agg["per_joint"],
         "per_run": [{"run": r["run"], "d_mean_mm": r["d_mean"], "d_max_mm": r["d_max"], "mmta": r["mmta"],
-                     "frames_per_s": r["frames_per_s"]} for r in sorted(per_run, key=lambda r: r["run"])],
+                     "mmtp_mm": r["mmtp"], "sigma_mm": r["sigma"], "frames_per_s": r["frames_per_s"]}
+                    for r in sorted(per_run, key=lambda r: r["run"])],
         "sequence": sequence_location(sequence),
         "fitness": config.fitness_kind,
         "motion": config.motion,

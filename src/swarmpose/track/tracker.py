@@ -226,7 +226,7 @@ def _ik_cache_key(sequence_path: str | Path, config: TrackConfig) -> str:
     """What the cached IK fit (``ik.npz``) and ``subject.json`` of a results folder depend on."""
     return json.dumps({"sequence": sequence_identity(sequence_path), "model": config.model,
                        "model_spec_sha1": model_identity(config.model), "variant": config.variant,
-                       "fps": config.fps}, sort_keys=True)
+                       "fps": config.fps, "ik": "smooth start, polished floor"}, sort_keys=True)
 
 
 def _read_ik_cache(out_dir: Path | None, key: str, frames: np.ndarray, n_params: int):
@@ -292,13 +292,14 @@ def prepare_track(sequence_path: str | Path, config: TrackConfig, out_dir: Path 
                                 f"({int(frames[0])}) is invalid; the start pose comes from it")
             ik = fit_ik(model, gt[valid])
             ik_params = np.full((len(gt), model.n_params), np.nan)
+            floor_params = np.full((len(gt), model.n_params), np.nan)
             ik_err = np.full((len(gt), 15), np.nan)
-            ik_params[valid], ik_err[valid] = ik.params, ik.joint_error_mm
+            ik_params[valid], ik_err[valid], floor_params[valid] = ik.params, ik.joint_error_mm, ik.floor_params
             if out_dir is not None:
                 out_dir.mkdir(parents=True, exist_ok=True)
                 subject.save(out_dir / "subject.json")
-                _atomic_savez(out_dir / "ik.npz", params=ik_params, joint_error_mm=ik_err, frame_indices=frames,
-                              key=np.array(key))
+                _atomic_savez(out_dir / "ik.npz", params=ik_params, joint_error_mm=ik_err, floor_params=floor_params,
+                              frame_indices=frames, key=np.array(key))
         return TrackSetup(sequence_path=Path(sequence_path), config=config, model=model, frame_indices=frames,
                           frame_times=times, gt_joints=gt, ik_params=ik_params, ik_error_mm=ik_err,
                           world_from_source=np.asarray(seq.world_from_source, dtype=np.float64),
@@ -451,10 +452,8 @@ def run_tracker(
     result = RunResult(run=run, params=params[:done], joints=joints, scores=scores[:done],
                        evaluations=evals[:done], seconds=seconds[:done])
     if done == T:
-        ok = setup.valid
-        errs = track_errors(joints[ok], setup.gt_joints[ok])
-        d_all = np.full(T, np.nan)
-        d_all[ok] = errs.d_per_frame
+        errs = track_errors(joints, setup.gt_joints)  # frames without valid ground truth are not scored
+        d_all = errs.d_per_frame
         result.errors = {**errs.summary(), "frames_per_s": result.frames_per_s,
                          "evals_per_frame": int(evals.max()), "ik_floor_mm": setup.ik_floor_mm}
         if run_dir is not None:
