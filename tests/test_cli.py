@@ -126,10 +126,10 @@ def test_compare_list_shows_the_entries_without_running(tmp_path: Path):
     assert res.exit_code == 0, res.output
     data = json.loads(res.stdout)
     (item,) = data["suites"]
-    assert item["suite"] == "thesis-partitions" and item["jobs"] == 5 * 3
+    assert item["suite"] == "thesis-partitions" and item["jobs"] == 7 * 3
     assert [e["label"] for e in item["entries"]] == [e.label for e in suite("thesis-partitions")]
-    evals = {e["algo"]: e["evals_per_frame"] for e in item["entries"]}
-    assert evals["sppso"] == evals["hard2"] == evals["pso-global"] == 1000 and evals["hpso12"] == 7200  # thesis Fig. 6.14
+    evals = {(e["algo"], e["fps"]): e["evals_per_frame"] for e in item["entries"]}
+    assert set(evals.values()) == {1000, 7200} and evals["hpso12", 60.0] == 7200  # thesis Fig. 6.14, at 60 fps
     assert not (tmp_path / "o").exists()
     budget = json.loads(runner.invoke(app, ["compare", "thesis-budget", "--list", "--json"]).stdout)
     assert [e["evals_per_frame"] for e in budget["suites"][0]["entries"]] == [1000, 2000, 4000]  # variants applied
