@@ -345,3 +345,49 @@ def test_marker_fitness_on_a_sequence_without_markers_fails_before_the_ik_fit(tm
     with pytest.raises(DataError, match="no 2D marker detections.*--markers joints15"):
         run_suite("markers", [seq], tmp_path / "cmp", runs=1, workers=1, progress=False)
     assert not list((tmp_path / "cmp").rglob("ik.npz")) and not list((tmp_path / "cmp").rglob("run_*"))
+
+
+def test_damaged_result_files_are_named_not_tracebacks(short_sequence, tmp_path):
+    """A truncated or foreign progress.npz, a broken config.json or a damaged ik.npz cache: a FormatError that
+    names the file (and says how to go on), or a refit for the cache; never a traceback or a pickle load."""
+    from swarmpose.errors import FormatError
+    from swarmpose.track.runner import check_results_folder
+
+    cfg = TrackConfig(fps=20.0, seed=7)
+    setup = prepare_track(short_sequence, cfg, tmp_path)
+    run_tracker(setup, 0, tmp_path, stop_after=1)
+    progress = tmp_path / "run_000" / "progress.npz"
+    good = progress.read_bytes()
+    for damaged in (b"not an archive\n", good[: len(good) // 3]):
+        progress.write_bytes(damaged)
+        with pytest.raises(FormatError, match=r"progress\.npz.*delete it to track run 0 afresh"):
+            run_tracker(setup, 0, tmp_path, resume=True)
+    progress.write_bytes(good)
+    assert len(run_tracker(setup, 0, tmp_path, resume=True).params) == len(setup.frame_indices)
+    (tmp_path / "config.json").write_text("{bad")
+    with pytest.raises(FormatError, match=r"config\.json, line 1: not valid JSON"):
+        check_results_folder(tmp_path, short_sequence, cfg, 1, resume=True)
+    (tmp_path / "ik.npz").write_bytes(b"PK\x03\x04 truncated")
+    again = prepare_track(short_sequence, cfg, tmp_path)  # refitted, not trusted
+    np.testing.assert_allclose(again.ik_params, setup.ik_params)
+
+
+def test_a_resumed_folder_keeps_its_history(short_sequence, tmp_path):
+    """config.json keeps the first session's creation time and lists the earlier sessions' versions and
+    sequence paths; the versions name the source revision when it is a git checkout."""
+    import shutil
+
+    from swarmpose.track.tracker import source_revision
+
+    track_runs(short_sequence, TrackConfig(fps=20.0), 1, tmp_path / "r", workers=1, progress=False)
+    first = json.loads((tmp_path / "r" / "config.json").read_text())
+    assert "sessions" not in first
+    if source_revision():
+        assert first["versions"]["swarmpose_git"] == source_revision()
+    moved = tmp_path / "moved_seq"
+    shutil.copytree(short_sequence, moved)  # the same data from another path: resumable
+    track_runs(moved, TrackConfig(fps=20.0), 2, tmp_path / "r", resume=True, workers=1, progress=False)
+    second = json.loads((tmp_path / "r" / "config.json").read_text())
+    assert second["created"] == first["created"] and "resumed" in second
+    assert second["sessions"] == [{k: first[k] for k in ("created", "versions", "sequence", "runs")}]
+    assert second["sequence"] == str(moved.resolve()) and second["runs"] == 2

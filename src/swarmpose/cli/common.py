@@ -71,6 +71,13 @@ def fail_on_user_error(func: F) -> F:
             return func(*args, **kwargs)
         except BrokenPipeError:  # stdout closed by the reader (`| head`): nothing to report to
             raise
+        except KeyboardInterrupt:
+            message = ("interrupted; the frames tracked so far are saved: run the same command with --resume "
+                       "to continue" if "resume" in kwargs else "interrupted")
+            err_console.print(f"[bold red]{escape(message)}[/bold red]", highlight=False)
+            if kwargs.get("json_out") is True:
+                print_json({"error": message, "exit_code": 130})
+            raise typer.Exit(code=130) from None
         except (SwarmposeError, OSError) as exc:  # OSError: a path that cannot be read or written
             message = _os_message(exc) if isinstance(exc, OSError) else str(exc)
             err_console.print(f"[bold red]error:[/bold red] {escape(message)}", highlight=False)

@@ -20,7 +20,7 @@ from swarmpose.track.runner import (
     errors_from_summary,
     run_jobs,
 )
-from swarmpose.track.tracker import TrackConfig, config_record, prepare_track
+from swarmpose.track.tracker import TrackConfig, prepare_track, write_config
 
 __all__ = ["run_suite", "suite_configs", "comparison_table"]
 
@@ -67,7 +67,7 @@ def run_suite(name: str, sequences: list[Path], out_dir: Path, *, runs: int = 5,
         for cell, (seq, e, cfg) in planned.items():
             setup = prepare_track(seq, cfg, cell)  # IK floor once per cell, before the workers start
             cell.mkdir(parents=True, exist_ok=True)
-            (cell / "config.json").write_text(json.dumps(config_record(setup, runs), indent=1) + "\n")
+            write_config(cell, setup, runs)
             cells.append((e, Path(seq), cell, setup))
             jobs += [Job(str(seq), asdict(cfg), k, str(cell), resume) for k in range(runs)]
     except BaseException:

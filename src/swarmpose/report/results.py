@@ -20,7 +20,6 @@ the rest is recomputed or left out when missing (a run still in progress has onl
 
 from __future__ import annotations
 
-import json
 import os
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -30,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from swarmpose.errors import DataError, FormatError
+from swarmpose.io.files import load_npz, read_json_object
 from swarmpose.joints import JOINTS15
 from swarmpose.metrics import valid_frames
 
@@ -233,32 +233,9 @@ def as_results(results: str | os.PathLike[str] | Results) -> Results:
     return results if isinstance(results, Results) else load_results(results)
 
 
-def _read_json(path: Path) -> dict[str, Any]:
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except json.JSONDecodeError as exc:
-        raise FormatError(f"not valid JSON ({exc.msg})", path=path, line=exc.lineno) from None
-    if not isinstance(data, dict):
-        raise FormatError("expected a JSON object", path=path)
-    return data
-
-
-def _load_npz(path: Path, required: tuple[str, ...]) -> dict[str, np.ndarray]:
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            missing = [k for k in required if k not in z.files]
-            if missing:
-                raise FormatError(f"missing array(s) {missing}", path=path)
-            return {k: z[k] for k in z.files}
-    except FormatError:
-        raise
-    except (OSError, ValueError, EOFError) as exc:
-        raise FormatError(f"cannot read .npz (truncated or corrupt?): {exc}", path=path) from None
-
-
 def _load_run(run_dir: Path, run: int) -> RunData:
-    track = _load_npz(run_dir / "track.npz", ("params",))
-    jnt = _load_npz(run_dir / "joints.npz", ("joints", "gt_joints"))
+    track = load_npz(run_dir / "track.npz", ("params",))
+    jnt = load_npz(run_dir / "joints.npz", ("joints", "gt_joints"))
     joints = np.asarray(jnt["joints"], dtype=np.float64)
     gt = np.asarray(jnt["gt_joints"], dtype=np.float64)
     T = joints.shape[0]
@@ -283,7 +260,7 @@ def _load_run(run_dir: Path, run: int) -> RunData:
         seconds=arr(track, "seconds", np.zeros(T)).astype(np.float64),
         evaluations=arr(track, "evaluations", np.zeros(T, np.int64)),
         scores=arr(track, "scores", np.zeros(T)).astype(np.float64),
-        summary=_read_json(summary_file) if summary_file.is_file() else {},
+        summary=read_json_object(summary_file) if summary_file.is_file() else {},
     )
 
 
@@ -342,7 +319,7 @@ def load_results(results_dir: str | os.PathLike[str]) -> Results:
     cfg_file = root / "config.json"
     if not cfg_file.is_file():
         raise DataError(f"{cfg_file} not found: is this a swarmpose results folder?")
-    config = _read_json(cfg_file)
+    config = read_json_object(cfg_file)
     runs: list[RunData] = []
     skipped: list[str] = []
     n_runs = config.get("runs")  # the runs summary.json aggregates; run folders beyond are left out
@@ -371,7 +348,7 @@ def load_results(results_dir: str | os.PathLike[str]) -> Results:
     ik_err = ik_params = None
     ik_file = root / "ik.npz"
     if ik_file.is_file():
-        ik = _load_npz(ik_file, ("joint_error_mm",))
+        ik = load_npz(ik_file, ("joint_error_mm",))
         ik_err = np.asarray(ik["joint_error_mm"], dtype=np.float64)
         ik_params = ik.get("params")
         if ik_err.shape != (T, 15):
@@ -380,7 +357,7 @@ def load_results(results_dir: str | os.PathLike[str]) -> Results:
     ik_floor = None if ik_err is None else float(np.nanmean(ik_err.mean(axis=1)))  # as track: valid frames only
     summary_file = root / "summary.json"
     if summary_file.is_file():
-        summary = _read_json(summary_file)
+        summary = read_json_object(summary_file)
     else:
         summary = _recompute_summary(config, runs, ik_floor if ik_floor is not None else config.get("ik_floor_mm"))
     summary.setdefault("per_joint_mm", {n: float(v) for n, v in

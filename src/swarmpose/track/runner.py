@@ -19,15 +19,16 @@ from typing import Any
 
 import numpy as np
 
+from swarmpose.io.files import read_json_object
 from swarmpose.metrics import TrackErrors, aggregate_runs
 from swarmpose.track.tracker import (
     TrackConfig,
-    config_record,
     model_identity,
     prepare_track,
     run_tracker,
     sequence_identity,
     sequence_location,
+    write_config,
 )
 
 __all__ = ["Job", "check_results_folder", "close_client", "connect_scheduler", "errors_from_summary",
@@ -60,9 +61,25 @@ def resolve_sequence(source: str | Path, *, cache_dir: Path | None = None, progr
 
 
 def _worker_init(threads: int) -> None:
+    import signal
+
     import numba
 
+    # Ctrl-C reaches the whole process group: the parent alone handles it (it stops the workers), so
+    # that no worker dies half-way through a pool message and leaves the pool waiting forever
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     numba.set_num_threads(max(1, threads))
+
+
+def _stop_pool(pool: ProcessPoolExecutor) -> None:
+    """Cancel the queued jobs and terminate the running ones (on Ctrl-C). The tracker saves its progress
+    atomically after every frame, so ``--resume`` continues from the last finished frame."""
+    procs = list((getattr(pool, "_processes", None) or {}).values())  # no public terminate() exists
+    pool.shutdown(wait=False, cancel_futures=True)
+    for proc in procs:
+        proc.terminate()
+    for proc in procs:
+        proc.join(timeout=5)
 
 
 def run_job(job: Job) -> dict[str, Any]:
@@ -127,12 +144,18 @@ def run_jobs(jobs: Sequence[Job], *, workers: int | None = None, scheduler: Any 
         else:
             # "spawn": numba's OpenMP threading layer is not fork-safe once the parent has used it
             ctx = multiprocessing.get_context("spawn")
-            with ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_worker_init,
-                                     initargs=(max(1, cpus // workers),)) as pool:
+            pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_worker_init,
+                                       initargs=(max(1, cpus // workers),))
+            try:
                 futures = {pool.submit(run_job, j): i for i, j in enumerate(jobs)}
                 for fut in as_completed(futures):
                     results[futures[fut]] = fut.result()
                     bar.update(1)
+            except BaseException:  # Ctrl-C or a failed job: do not wait for the queued runs
+                _stop_pool(pool)
+                bar.close()
+                raise
+            pool.shutdown(wait=True)
     bar.close()
     return [r for r in results if r is not None]
 
@@ -164,7 +187,7 @@ def check_results_folder(out_dir: Path, sequence: str | Path, config: TrackConfi
         return
     if not cfg_file.is_file():
         return  # nothing to resume yet: a fresh start
-    old = json.loads(cfg_file.read_text())
+    old = read_json_object(cfg_file)
     new = asdict(config)
     defaults = asdict(TrackConfig())  # a folder written before a setting existed used its default
     differ = [f"{k}: {old.get(k, defaults[k])!r} there, {v!r} now" for k, v in new.items()
@@ -215,7 +238,7 @@ def track_runs(sequence: str | Path, config: TrackConfig, runs: int, out_dir: Pa
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
         setup = prepare_track(sequence, config, out_dir)  # fits and caches the IK floor once
-        (out_dir / "config.json").write_text(json.dumps(config_record(setup, runs), indent=1) + "\n")
+        write_config(out_dir, setup, runs)
     except BaseException:
         close_client(scheduler)
         raise

@@ -18,6 +18,7 @@ stopped and gives the same result as an uninterrupted one.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import os
@@ -34,7 +35,8 @@ from swarmpose.body.ik import fit_ik
 from swarmpose.body.model import BodyModel
 from swarmpose.body.priors import HardPriors
 from swarmpose.body.spec import Subject, load_spec
-from swarmpose.errors import ConfigError, DataError
+from swarmpose.errors import ConfigError, DataError, FormatError
+from swarmpose.io.files import load_npz, read_json_object
 from swarmpose.metrics import track_errors
 from swarmpose.track.motion import parse_motion
 
@@ -122,15 +124,36 @@ def run_seed(seed: int, run: int) -> np.random.SeedSequence:
     return np.random.SeedSequence([int(seed), int(run)])
 
 
+@functools.lru_cache(maxsize=1)
+def source_revision() -> str | None:
+    """The git commit of the swarmpose source this process runs (``+dirty`` with uncommitted changes to
+    tracked files), or None outside a git checkout: results name the code that made them."""
+    import subprocess
+
+    here = Path(__file__).resolve().parent
+    try:
+        head = subprocess.run(["git", "-C", str(here), "rev-parse", "HEAD"], capture_output=True, text=True,
+                              timeout=5, check=True).stdout.strip()
+        dirty = subprocess.run(["git", "-C", str(here), "status", "--porcelain", "--untracked-files=no", "--", "."],
+                               capture_output=True, text=True, timeout=5, check=True).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return head + ("+dirty" if dirty else "") if head else None
+
+
 def versions() -> dict[str, str]:
     import numba
     import scipy
 
     from swarmpose import __version__
 
-    return {"swarmpose": __version__, "python": platform.python_version(), "numpy": np.__version__,
-            "scipy": scipy.__version__, "numba": numba.__version__, "machine": platform.machine(),
-            "cpus": str(os.cpu_count())}
+    out = {"swarmpose": __version__, "python": platform.python_version(), "numpy": np.__version__,
+           "scipy": scipy.__version__, "numba": numba.__version__, "machine": platform.machine(),
+           "cpus": str(os.cpu_count())}
+    rev = source_revision()
+    if rev:
+        out["swarmpose_git"] = rev
+    return out
 
 
 @dataclass
@@ -235,15 +258,18 @@ def _read_ik_cache(out_dir: Path | None, key: str, frames: np.ndarray, n_params:
     ik_file = None if out_dir is None else out_dir / "ik.npz"
     if ik_file is None or not ik_file.is_file() or not (out_dir / "subject.json").is_file():
         return None
-    with np.load(ik_file, allow_pickle=False) as z:
-        if "key" in z.files and str(z["key"]) != key:
-            return None
-        # folders written before the key existed: the frames and the parameter count must still agree
-        if "frame_indices" in z.files and not np.array_equal(z["frame_indices"], frames):
-            return None
-        if z["params"].shape != (len(frames), n_params):
-            return None
-        return z["params"], z["joint_error_mm"]
+    try:
+        z = load_npz(ik_file, ("params", "joint_error_mm"))
+    except FormatError:
+        return None  # a damaged cache is refitted, not trusted
+    if "key" in z and str(z["key"]) != key:
+        return None
+    # folders written before the key existed: the frames and the parameter count must still agree
+    if "frame_indices" in z and not np.array_equal(z["frame_indices"], frames):
+        return None
+    if z["params"].shape != (len(frames), n_params):
+        return None
+    return z["params"], z["joint_error_mm"]
 
 
 def prepare_track(sequence_path: str | Path, config: TrackConfig, out_dir: Path | None = None) -> TrackSetup:
@@ -404,14 +430,24 @@ def run_tracker(
         if progress_file.is_file():
             if not resume:
                 raise ConfigError(f"{progress_file} exists: pass --resume to continue it, or use a new --out")
-            with np.load(progress_file, allow_pickle=False) as z:
+            try:
+                z = load_npz(progress_file, ("done", "params", "scores", "evaluations", "seconds", "x_prev",
+                                             "rng_state"))
+            except FormatError as exc:
+                raise FormatError(f"{exc}; delete it to track run {run} afresh") from None
+            try:
                 start_k = int(z["done"])
+                if not 0 <= start_k <= T or z["params"].shape != params.shape:
+                    raise ValueError(f"{start_k} frames done of {T}, params {z['params'].shape}")
                 params[:start_k], scores[:start_k] = z["params"][:start_k], z["scores"][:start_k]
                 evals[:start_k], seconds[:start_k] = z["evaluations"][:start_k], z["seconds"][:start_k]
                 x_prev = z["x_prev"].copy()
                 rng.bit_generator.state = json.loads(str(z["rng_state"]))
-                if "carry_x" in z.files:
-                    carry = optim.ParticleSet(z["carry_x"].copy(), z["carry_w"].copy())
+            except (ValueError, TypeError, KeyError) as exc:
+                raise FormatError(f"does not fit this run ({exc}); delete it to track run {run} afresh",
+                                  path=progress_file) from None
+            if "carry_x" in z:
+                carry = optim.ParticleSet(z["carry_x"].copy(), z["carry_w"].copy())
 
     seq = open_sequence(setup.sequence_path)
     backgrounds = seq.backgrounds() if cfg.fitness_kind in IMAGE_FITNESS else None
@@ -472,6 +508,25 @@ def _write_run(run_dir: Path, setup: TrackSetup, result: RunResult, d_per_frame:
                   world_from_source=setup.world_from_source)
     (run_dir / "summary.json").write_text(json.dumps(to_jsonable({"run": result.run, **result.errors}),
                                                      indent=1) + "\n")
+
+
+def write_config(out_dir: Path, setup: TrackSetup, runs: int) -> None:
+    """Write ``out_dir/config.json``. On a resume the first session's ``created`` is kept and each earlier
+    session's time, versions, sequence path and runs are appended to ``sessions``, so that a folder tracked
+    in several sessions (maybe by different code or from a moved sequence) says so."""
+    record = config_record(setup, runs)
+    old_file = out_dir / "config.json"
+    if old_file.is_file():
+        try:
+            old = read_json_object(old_file)
+        except (FormatError, OSError):
+            old = {}
+        if old:
+            record["sessions"] = [*old.get("sessions", []),
+                                  {k: old.get(k) for k in ("created", "versions", "sequence", "runs")}]
+            record["created"] = old.get("created", record["created"])
+            record["resumed"] = time.strftime("%Y-%m-%dT%H:%M:%S%z")
+    (out_dir / "config.json").write_text(json.dumps(record, indent=1) + "\n")
 
 
 def config_record(setup: TrackSetup, runs: int) -> dict[str, Any]:
