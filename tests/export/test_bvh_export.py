@@ -203,3 +203,22 @@ def test_auto_maps_by_name_whatever_the_tree_order(tmp_path: Path):
     clip = load_clip(export_bvh(model, P, 30.0, tmp_path / "nf.bvh"), style="auto")
     assert clip.skeleton_map.style == "swarmpose"
     np.testing.assert_allclose(clip.joints, model.joints15(P), atol=1e-3)
+
+
+def test_uneven_tracked_frames_are_put_on_an_even_clock():
+    """25 fps tracked from 60 fps picks frames 33 and 50 ms apart; the BVH needs one frame time, so the poses
+    are interpolated onto t0 + k / 25: a motion uniform in time stays uniform per frame (no 25 % warp)."""
+    from swarmpose.export import uniform_clock
+
+    t = np.round(np.arange(0, 61) / 25 * 60) / 60  # the nearest 60-fps frames of a 25-fps clock
+    assert set(np.round(np.diff(t) * 1000).astype(int)) == {33, 50}
+    params = np.stack([1000.0 * t, np.sin(t)], axis=1)  # 1 m/s and a smooth angle
+    out, grid, resampled = uniform_clock(params, t, 25.0)
+    assert resampled and np.allclose(np.diff(grid), 0.04) and grid[0] == t[0] and grid[-1] <= t[-1] + 1e-12
+    np.testing.assert_allclose(np.diff(out[:, 0]), 40.0, atol=1e-9)  # 40 mm per 40 ms frame
+    np.testing.assert_allclose(out[:, 1], np.sin(grid), atol=2e-3)
+    even = np.arange(10) / 20
+    same, _, again = uniform_clock(params[:10], even, 20.0)
+    assert not again and same is not None and np.array_equal(same, params[:10])
+    with pytest.raises(ConfigError, match="increasing"):
+        uniform_clock(params[:3], np.array([0.0, 0.1, 0.1]), 20.0)

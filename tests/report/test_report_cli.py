@@ -38,6 +38,10 @@ def test_report_text_and_errors(fake_results, tmp_path: Path):
     assert str(tmp_path / "r" / "summary.md") in out.output and "overlay_run000.gif" in out.output
     bad = CliRunner().invoke(app, ["report", str(tmp_path)])
     assert bad.exit_code == 2
+    for args, message in ((["--format", "mp4"], "add --video"), (["--video", "--format", "avi"], "gif or mp4")):
+        wrong = CliRunner().invoke(app, ["report", str(res), *args, "--out", str(tmp_path / "w"), "--json"])
+        assert wrong.exit_code == 2 and message in json.loads(wrong.stdout)["error"]
+        assert not (tmp_path / "w").exists()  # refused before any figure is written
     assert "config.json not found: is this a swarmpose results folder?" in " ".join(bad.output.split())
 
 
@@ -59,6 +63,12 @@ def test_export_json_round_trip(fake_results, tmp_path: Path):
     assert missing.exit_code == 2 and "no finished run 7" in " ".join(missing.output.split())
     bad = CliRunner().invoke(app, ["export", str(fake_results[0]), "--out", str(bvh), "--rest-facing", "up"])
     assert bad.exit_code == 2 and "--rest-facing must be one of +z, +x" in " ".join(bad.output.split())
+    assert data["resampled"] is False and data["tracked_frames"] == 6  # evenly spaced frames are kept
+    zup = CliRunner().invoke(app, ["export", str(fake_results[0]), "--out", str(bvh), "--z-up", "--json"])
+    assert zup.exit_code == 0 and json.loads(zup.stdout)["rest_facing"] == "+x"
+    clash = CliRunner().invoke(app, ["export", str(fake_results[0]), "--out", str(bvh), "--z-up", "--rest-facing",
+                                     "+z", "--json"])
+    assert clash.exit_code == 2 and "Y-up" in json.loads(clash.stdout)["error"]
 
 
 def test_output_paths_a_user_gets_wrong_are_handled(fake_results, tmp_path: Path):

@@ -391,3 +391,38 @@ def test_a_resumed_folder_keeps_its_history(short_sequence, tmp_path):
     assert second["created"] == first["created"] and "resumed" in second
     assert second["sessions"] == [{k: first[k] for k in ("created", "versions", "sequence", "runs")}]
     assert second["sequence"] == str(moved.resolve()) and second["runs"] == 2
+
+
+def test_sources_that_are_not_sequences_are_named_and_leave_nothing_behind(short_sequence, tmp_path):
+    """A file, a results folder or an empty source: the message says what it is; a failing track removes the
+    empty results folder it made; report points from a comparison folder to its entries and from an
+    interrupted folder to --resume."""
+    from typer.testing import CliRunner
+
+    from swarmpose.cli.app import app
+    from swarmpose.errors import DataError
+    from swarmpose.report import load_results
+    from swarmpose.track.runner import resolve_sequence
+
+    (tmp_path / "notes.txt").write_text("hello")
+    with pytest.raises(DataError, match="is a file, not a sequence folder or a .bvh clip"):
+        resolve_sequence(tmp_path / "notes.txt")
+    with pytest.raises(DataError, match="source is empty"):
+        resolve_sequence("")
+    track_runs(short_sequence, TrackConfig(fps=20.0), 1, tmp_path / "res", workers=1, progress=False)
+    with pytest.raises(DataError, match=f"results folder .* tracked from {short_sequence.resolve()}"):
+        resolve_sequence(tmp_path / "res")
+    out = CliRunner().invoke(app, ["track", str(tmp_path / "missing"), "--out", str(tmp_path / "o"), "--json"])
+    assert out.exit_code == 2 and not (tmp_path / "o").exists()
+    cmp = tmp_path / "cmp"
+    (cmp / "seq").mkdir(parents=True)
+    import shutil
+
+    shutil.copytree(tmp_path / "res", cmp / "seq" / "sppso_20fps")
+    with pytest.raises(DataError, match="holds a comparison.*sppso_20fps"):
+        load_results(cmp)
+    setup = prepare_track(short_sequence, TrackConfig(fps=20.0), tmp_path / "cut")
+    (tmp_path / "cut" / "config.json").write_text("{}")
+    run_tracker(setup, 0, tmp_path / "cut", stop_after=1)
+    with pytest.raises(DataError, match="--resume"):
+        load_results(tmp_path / "cut")

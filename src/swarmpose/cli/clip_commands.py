@@ -9,7 +9,7 @@ import numpy as np
 import typer
 
 from swarmpose.cli.app import app
-from swarmpose.cli.common import console, err_console, escape, fail_on_user_error, print_json
+from swarmpose.cli.common import console, err_console, escape, fail_on_user_error, note_upsampling, print_json
 
 
 @app.command()
@@ -104,6 +104,7 @@ def ik(
 
         raise ConfigError(f"--out {out} is a folder; give the .npz file to write, "
                           f"e.g. {Path(out) / (Path(clip).stem + '_ik.npz')}")
+    note_upsampling(clip, fps)
     c = load_clip(clip, fps=fps, unit_scale=_unit(unit), style="auto")
     spec = load_spec(model)
     body = BodyModel(spec, subject_from_clip(spec, c), "thesis" if "thesis" in spec.variants else None)

@@ -6,6 +6,7 @@ import functools
 import json
 import sys
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any, TypeVar
 
 import numpy as np
@@ -86,3 +87,17 @@ def fail_on_user_error(func: F) -> F:
             raise typer.Exit(code=2) from None
 
     return wrapper  # type: ignore[return-value]
+
+
+def note_upsampling(clip: Path, fps: float) -> None:
+    """Say on stderr when ``--fps`` is above the clip's capture rate: frames between captured ones are
+    interpolated (joint rotations slerped), not measured."""
+    from swarmpose.io.bvh import read_bvh
+
+    try:
+        rate = read_bvh(clip).frame_rate
+    except Exception:  # noqa: BLE001 - the caller reads the file again and reports its errors itself
+        return
+    if fps > rate * (1 + 1e-6):
+        err_console.print(f"note: {escape(str(clip))} is captured at {rate:g} Hz; at --fps {fps:g} the frames "
+                          "between captured ones are interpolated, not measured", highlight=False)

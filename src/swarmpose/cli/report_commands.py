@@ -20,8 +20,9 @@ def report(
     frames: Annotated[int, typer.Option("--frames", min=0,
                                         help="Number of overlay images (with the worst frame); 0: none.")] = 4,
     run: Annotated[int, typer.Option("--run", min=0, help="The run drawn in the overlays and the video.")] = 0,
-    video_format: Annotated[str, typer.Option("--format", help="Video format: gif, or mp4 (needs FFmpeg: the "
-                                                               "'video' extra, or OpenCV's bundled one).")] = "gif",
+    video_format: Annotated[str | None, typer.Option("--format", help="Video format with --video: gif (default), or "
+                                                                      "mp4 (needs FFmpeg: the 'video' extra, or "
+                                                                      "OpenCV's bundled one).")] = None,
     sequence: Annotated[Path | None, typer.Option("--sequence", help="The tracked sequence folder, if it has "
                                                                      "moved since tracking.")] = None,
     out: Annotated[Path | None, typer.Option("--out", help="Report folder (default RESULTS_DIR/report).")] = None,
@@ -38,8 +39,13 @@ def report(
 
     if out is not None and out.exists() and not out.is_dir():
         raise ConfigError(f"--out {out} is a file; the report needs a folder")
+    if video_format is not None and not video:
+        raise ConfigError(f"--format {video_format} chooses the video's format: add --video to write one")
+    video_format = (video_format or "gif").lower()
+    if video_format not in ("gif", "mp4"):  # before any figure is written
+        raise ConfigError(f"--format must be gif or mp4, got {video_format!r}")
     paths = make_report(results_dir, video=video, overlay_frames=frames, run=run, out_dir=out,
-                        sequence=sequence, video_format=video_format.lower())
+                        sequence=sequence, video_format=video_format)
     for note in paths.notes:
         err_console.print(f"[yellow]note:[/yellow] {escape(note)}", highlight=False)
     if json_out:
@@ -67,9 +73,14 @@ def export(
     unit: Annotated[str, typer.Option("--unit", help="Length unit of the file: mm, cm or m.")] = "mm",
     order: Annotated[str, typer.Option("--order", help="Rotation channel order of every joint (ZXY, XYZ, ...), "
                                                        "or 'model' for each joint's own axes.")] = "ZXY",
-    rest_facing: Annotated[str, typer.Option("--rest-facing", help="Where the rest pose (all channels zero) "
-                                             "faces in a Y-up file: +z (what animation tools expect) or +x "
-                                             "(the body model's own zero pose).")] = "+z",
+    rest_facing: Annotated[str | None, typer.Option("--rest-facing", help="Where the rest pose (all channels zero) "
+                                                    "faces in a Y-up file: +z (what animation tools expect; the "
+                                                    "default) or +x (the body model's own zero pose). A --z-up "
+                                                    "file always keeps the model's zero pose.")] = None,
+    resample: Annotated[bool, typer.Option("--resample/--no-resample", help="When the tracked frames are not evenly "
+                                           "spaced (25 fps from a 60 fps sequence: 33 and 50 ms), interpolate "
+                                           "the poses onto an even 1/fps clock (BVH has one frame time); "
+                                           "--no-resample writes the tracked frames as they are.")] = True,
     json_out: Annotated[bool, typer.Option("--json", help="Print one JSON object instead of a line.")] = False,
 ) -> None:
     """Export a run's tracked motion as a BVH file that animation tools (Blender, MotionBuilder) import.
@@ -79,15 +90,20 @@ def export(
     so the joints land where `track` put them, and the rest pose stands facing +Z (--rest-facing +x: the
     model's own zero pose, facing +X; --z-up keeps the world's axes and the model's zero pose).
     """
+    import numpy as np
+
     from swarmpose.errors import ConfigError
-    from swarmpose.export import REST_FACINGS, export_bvh
+    from swarmpose.export import REST_FACINGS, export_bvh, uniform_clock
     from swarmpose.report.results import load_results
 
     scales = {"mm": 1.0, "cm": 0.1, "m": 0.001}
     if unit not in scales:
         raise ConfigError(f"--unit must be one of {', '.join(scales)}, got {unit!r}")
-    if rest_facing.lower() not in REST_FACINGS:
+    if rest_facing is not None and rest_facing.lower() not in REST_FACINGS:
         raise ConfigError(f"--rest-facing must be one of {', '.join(REST_FACINGS)}, got {rest_facing!r}")
+    if z_up and rest_facing is not None and rest_facing.lower() != "+x":
+        raise ConfigError("--rest-facing +z applies to Y-up files; a --z-up file keeps the model's zero pose (+x)")
+    rest_facing = (rest_facing or ("+x" if z_up else "+z")).lower()
     res = load_results(results_dir)
     r = res.run(run)
     if out.is_dir():  # a folder: the file goes into it
@@ -95,11 +111,24 @@ def export(
     fps = res.fps
     if not fps > 0:
         raise ConfigError(f"{results_dir / 'config.json'}: no tracking frame rate ('fps') recorded")
-    path = export_bvh(res.model, r.params, fps, out, y_up=not z_up, rotation_order=order,
+    params, times, resampled = uniform_clock(r.params, r.frame_times, fps) if resample else (r.params, r.frame_times, False)
+    d = np.diff(r.frame_times)
+    uneven = d.size > 0 and bool(np.any(np.abs(d - 1.0 / fps) > 0.01 / fps))
+    if resampled:
+        err_console.print(f"note: the tracked frames are {1000 * d.min():.0f}-{1000 * d.max():.0f} ms apart; "
+                          f"the poses are interpolated onto an even {1000 / fps:.1f} ms clock ({len(params)} frames "
+                          f"from {len(r.params)})", highlight=False)
+    elif uneven:
+        err_console.print(f"[yellow]warning:[/yellow] the tracked frames are {1000 * d.min():.0f}-{1000 * d.max():.0f} ms "
+                          f"apart but the file says {1000 / fps:.1f} ms each: its timing is warped "
+                          "(--resample interpolates onto an even clock)", highlight=False)
+    path = export_bvh(res.model, params, fps, out, y_up=not z_up, rotation_order=order,
                       scale=scales[unit], rest_facing=rest_facing)
-    data = {"bvh": str(path), "run": run, "frames": int(r.params.shape[0]), "frame_rate": float(fps),
+    data = {"bvh": str(path), "run": run, "frames": int(params.shape[0]), "frame_rate": float(fps),
             "joints": len(res.model.spec.joints), "axes": "z_up" if z_up else "y_up", "unit": unit,
-            "rotation_order": order, "rest_facing": "+x" if z_up else rest_facing.lower()}
+            "rotation_order": order, "rest_facing": rest_facing,
+            "resampled": resampled, "tracked_frames": int(r.params.shape[0]),
+            "tracked_interval_s": {"min": float(d.min()), "max": float(d.max())} if d.size else None}
     if json_out:
         print_json(data)
         return

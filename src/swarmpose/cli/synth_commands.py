@@ -10,7 +10,7 @@ import numpy as np
 import typer
 
 from swarmpose.cli.app import app
-from swarmpose.cli.common import console, err_console, escape, fail_on_user_error, print_json
+from swarmpose.cli.common import console, escape, fail_on_user_error, note_upsampling, print_json
 from swarmpose.errors import ConfigError
 
 
@@ -50,20 +50,6 @@ def option_names(message: str) -> str:
     for field_name, flag in _SYNTH_FLAGS.items():
         message = message.replace(field_name, flag)
     return message
-
-
-def _note_upsampling(clip: Path, fps: float) -> None:
-    """Say on stderr when ``--fps`` is above the clip's capture rate: frames between captured ones are
-    interpolated (joint rotations slerped), not measured."""
-    from swarmpose.io.bvh import read_bvh
-
-    try:
-        rate = read_bvh(clip).frame_rate
-    except Exception:  # noqa: BLE001 - synthesize() reads the file again and reports its errors itself
-        return
-    if fps > rate * (1 + 1e-6):
-        err_console.print(f"note: {escape(str(clip))} is captured at {rate:g} Hz; at --fps {fps:g} the frames "
-                          "between captured ones are interpolated, not measured", highlight=False)
 
 
 @app.command()
@@ -109,7 +95,7 @@ def synth(
         raise ConfigError(option_names(str(exc))) from None
     if not (np.isfinite(fps) and fps > 0):
         raise ConfigError(f"--fps must be a positive frame rate, got {fps!r}")
-    _note_upsampling(clip, fps)
+    note_upsampling(clip, fps)
     report = synthesize(clip, out, fps=fps, seed=seed, markers=msettings, body=body, scene=scene,
                         max_frames=max_frames, fs_stride=fs_stride, measure=not no_measure, overwrite=force,
                         progress=progress)

@@ -9,6 +9,8 @@ from swarmpose.export.bvh_export import (
     euler_from_matrices,
     export_bvh,
     rest_rotation,
+    uniform_clock,
 )
 
-__all__ = ["REST_FACINGS", "ROTATION_ORDERS", "bvh_axes", "euler_from_matrices", "export_bvh", "rest_rotation"]
+__all__ = ["REST_FACINGS", "ROTATION_ORDERS", "bvh_axes", "euler_from_matrices", "export_bvh", "rest_rotation",
+           "uniform_clock"]

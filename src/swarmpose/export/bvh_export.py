@@ -52,7 +52,8 @@ import numpy as np
 
 from swarmpose.errors import ConfigError
 
-__all__ = ["export_bvh", "bvh_axes", "rest_rotation", "euler_from_matrices", "ROTATION_ORDERS", "REST_FACINGS"]
+__all__ = ["export_bvh", "bvh_axes", "rest_rotation", "euler_from_matrices", "uniform_clock", "ROTATION_ORDERS",
+           "REST_FACINGS"]
 
 #: Channel orders accepted by :func:`export_bvh` (besides ``"model"``).
 ROTATION_ORDERS = ("ZXY", "ZYX", "XYZ", "XZY", "YXZ", "YZX")
@@ -144,6 +145,31 @@ def _model_order(model, j: int, A: np.ndarray) -> str:
                 axes.append(mapped)
     axes += [a for a in range(3) if a not in axes]
     return "".join(_AX[a] for a in axes)
+
+
+def uniform_clock(params: np.ndarray, frame_times: np.ndarray, frame_rate: float,
+                  tolerance: float = 0.01) -> tuple[np.ndarray, np.ndarray, bool]:
+    """Poses on the uniform clock a BVH file needs: ``(params (T', D), times (T',), resampled)``.
+
+    A tracking rate that does not divide the sequence's (25 fps from 60) tracks the nearest frames, 33 and
+    50 ms apart; written one per ``1 / frame_rate`` they would warp time by up to 25 % (velocities off by
+    as much, alternating). When an interval differs from ``1 / frame_rate`` by more than ``tolerance``
+    (relative), every parameter is interpolated linearly in time onto ``t_0 + k / frame_rate`` within the
+    tracked span; otherwise the poses are returned as they are. Angles are interpolated as the tracker
+    keeps them (continuous, unwrapped), between neighbours at most one tracked interval apart.
+    """
+    p = np.asarray(params, dtype=np.float64)
+    t = np.asarray(frame_times, dtype=np.float64)
+    if t.shape != (p.shape[0],) or not np.isfinite(t).all() or (np.diff(t) <= 0).any():
+        raise ConfigError(f"frame_times must be {p.shape[0]} increasing finite seconds, got shape {t.shape}")
+    if not frame_rate > 0:
+        raise ConfigError(f"frame_rate must be > 0, got {frame_rate!r}")
+    step = 1.0 / frame_rate
+    if len(t) < 2 or np.all(np.abs(np.diff(t) - step) <= tolerance * step):
+        return p, t, False
+    grid = t[0] + np.arange(int(np.floor((t[-1] - t[0]) / step + 1e-9)) + 1) * step
+    out = np.stack([np.interp(grid, t, p[:, d]) for d in range(p.shape[1])], axis=1)
+    return out, grid, True
 
 
 def export_bvh(

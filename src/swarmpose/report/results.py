@@ -318,6 +318,10 @@ def load_results(results_dir: str | os.PathLike[str]) -> Results:
         raise DataError(f"{root}: no such results folder")
     cfg_file = root / "config.json"
     if not cfg_file.is_file():
+        entries = sorted(c.parent for c in root.glob("*/*/config.json"))
+        if entries:  # a `swarmpose compare` folder: <sequence>/<entry>/ are the results folders
+            listed = ", ".join(str(e) for e in entries[:3]) + (f" and {len(entries) - 3} more" if len(entries) > 3 else "")
+            raise DataError(f"{root} holds a comparison (comparison.md); report one of its entries: {listed}")
         raise DataError(f"{cfg_file} not found: is this a swarmpose results folder?")
     config = read_json_object(cfg_file)
     runs: list[RunData] = []
@@ -340,8 +344,9 @@ def load_results(results_dir: str | os.PathLike[str]) -> Results:
         runs.append(_load_run(d, k))
     if not runs:
         extra = f" ({', '.join(skipped)})" if skipped else ""
-        raise DataError(f"{root}: no finished run (run_XXX/track.npz and joints.npz){extra}; "
-                        "is tracking still running?")
+        hint = ("is tracking still running? If it was interrupted, continue it with the same `swarmpose track` "
+                "command and --resume" if any("in progress" in k for k in skipped) else "is tracking still running?")
+        raise DataError(f"{root}: no finished run (run_XXX/track.npz and joints.npz){extra}; {hint}")
     T = runs[0].joints.shape[0]
     if any(r.joints.shape[0] != T for r in runs):
         raise FormatError(f"runs have different frame counts {[r.joints.shape[0] for r in runs]}", path=root)

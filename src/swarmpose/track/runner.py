@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from swarmpose.errors import FormatError
 from swarmpose.io.files import read_json_object
 from swarmpose.metrics import TrackErrors, aggregate_runs
 from swarmpose.track.tracker import (
@@ -57,7 +58,25 @@ def resolve_sequence(source: str | Path, *, cache_dir: Path | None = None, progr
         return Path(cached_sequence(p, **kwargs))
     if str(source).startswith(("humaneva:", "leewalk:")):
         return str(source)  # type: ignore[return-value]  # opened lazily by open_sequence
+    _check_sequence_folder(source, p)
     return p
+
+
+def _check_sequence_folder(source: str | Path, p: Path) -> None:
+    """Say what a source that is not a sequence folder is (a results folder, some other file)."""
+    from swarmpose.errors import DataError
+
+    if not str(source).strip():
+        raise DataError("the source is empty: give a sequence folder, a .bvh clip or humaneva:PATH")
+    if p.is_file():
+        raise DataError(f"{p} is a file, not a sequence folder or a .bvh clip")
+    if p.is_dir() and not (p / "sequence.json").is_file() and (p / "config.json").is_file():
+        try:
+            tracked = read_json_object(p / "config.json").get("sequence")
+        except (FormatError, OSError):
+            tracked = None
+        where = f"; it was tracked from {tracked}" if tracked else ""
+        raise DataError(f"{p} is a results folder (from swarmpose track or compare), not a sequence{where}")
 
 
 def _worker_init(threads: int) -> None:
@@ -235,12 +254,15 @@ def track_runs(sequence: str | Path, config: TrackConfig, runs: int, out_dir: Pa
     check_results_folder(out_dir, sequence, config, runs, resume)  # before anything is written
     if isinstance(scheduler, str):
         scheduler = connect_scheduler(scheduler)  # before the IK fit: a wrong address fails at once
+    fresh = not out_dir.exists()
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
         setup = prepare_track(sequence, config, out_dir)  # fits and caches the IK floor once
         write_config(out_dir, setup, runs)
     except BaseException:
         close_client(scheduler)
+        if fresh and out_dir.is_dir() and not any(out_dir.iterdir()):
+            out_dir.rmdir()  # a source or setting that fails leaves no empty results folder behind
         raise
     jobs = [Job(str(sequence), asdict(config), k, str(out_dir), resume) for k in range(runs)]
     if progress and scheduler is None and (workers == 1 or runs == 1):
