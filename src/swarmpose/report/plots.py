@@ -102,7 +102,7 @@ def error_over_time(
     d_mean = float(s.get("d_mean_mm", float(np.nanmean(D, axis=1).mean())))
     d_max = float(s.get("d_max_mm", float(np.nanmax(D, axis=1).mean())))
     max_label = "max (mean of the runs' maxima)" if len(res.runs) > 1 else "max"
-    ax.set_title(f"{_title_head(res)}: D mean = {d_mean:.1f} mm, {max_label} = {d_max:.1f} mm", fontsize=11)
+    ax.set_title(f"{_title_head(res)}\nD mean = {d_mean:.1f} mm, {max_label} = {d_max:.1f} mm", fontsize=11)
     ax.set_xlabel("time (s)")
     ax.set_ylabel("3D error D (mm)")
     top = float(np.nanmax(D)) if D.size else 1.0
