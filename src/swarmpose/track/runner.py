@@ -98,7 +98,10 @@ def _stop_pool(pool: ProcessPoolExecutor) -> None:
     for proc in procs:
         proc.terminate()
     for proc in procs:
-        proc.join(timeout=5)
+        proc.join(timeout=3)
+        if proc.is_alive():  # still starting up, or stuck in a call that ignores SIGTERM
+            proc.kill()
+            proc.join(timeout=3)
 
 
 def run_job(job: Job) -> dict[str, Any]:
