@@ -42,7 +42,7 @@ def main(write: bool) -> None:
         for path in sorted(MOCAP.glob("*.bvh")):
             clip = load_clip(path, fps=60)
             model = BodyModel(spec, subject_from_clip(spec, clip))
-            x = fit_ik(model, clip.joints).params
+            x = fit_ik(model, clip.joints, polish=False).params  # the smooth fit
             lo_obs, hi_obs = np.minimum(lo_obs, x.min(0)), np.maximum(hi_obs, x.max(0))
             if path.stem in WALKING:
                 steps.append(np.abs(np.diff(x, axis=0)))

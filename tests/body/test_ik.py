@@ -26,7 +26,7 @@ def test_ik_recovers_the_models_own_poses():
     x[:, m.param_index("pelvis_rz")] = 2.5 * t[:, 0]
     x = np.clip(x, m.lower, m.upper)
     # without the rest prior (which trades up to ~1 mm of fit for a stable decomposition, see fit_ik)
-    res = fit_ik(m, m.joints15(x), rest_weight=0.0)
+    res = fit_ik(m, m.joints15(x), rest_weight=0.0, polish=False)  # the smooth fit itself
     assert res.floor_max_mm < 0.05  # the damping term biases by ~0.01 mm
 
 

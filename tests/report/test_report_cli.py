@@ -130,3 +130,18 @@ def test_report_with_frames_without_ground_truth(results_builder, tmp_path: Path
     e = track_errors(r.joints, r.gt_joints)
     assert np.isnan(e.d_per_frame[2]) and np.isfinite(np.delete(e.d_per_frame, 2)).all()
     assert np.isclose(e.d_mean, np.delete(e.d_per_frame, 2).mean())
+
+
+def test_a_folder_without_frame_times_is_taken_as_evenly_spaced(fake_results, tmp_path: Path):
+    """joints.npz written without frame_times (by hand, or by another tool): the runs are taken as evenly spaced
+    at the tracking rate, so export keeps every frame (it used to resample 1-s frames onto 50 ms: 101 frames)."""
+    res = _copy(fake_results[0], tmp_path)
+    for run_dir in res.glob("run_*"):
+        with np.load(run_dir / "joints.npz") as z:
+            arrays = {k: z[k] for k in z.files if k != "frame_times"}
+        np.savez(run_dir / "joints.npz", **arrays)
+    np.testing.assert_allclose(load_results(res).frame_times, np.arange(6) / 20.0)
+    out = CliRunner().invoke(app, ["export", str(res), "--out", str(tmp_path / "m.bvh"), "--json"])
+    assert out.exit_code == 0, out.output
+    data = json.loads(out.stdout)
+    assert data["frames"] == 6 and data["resampled"] is False

@@ -18,7 +18,9 @@ def test_stop_pool_terminates_the_workers_at_once():
     pool = ProcessPoolExecutor(max_workers=2, mp_context=multiprocessing.get_context("spawn"),
                                initializer=_worker_init, initargs=(1,))
     futures = [pool.submit(time.sleep, 60) for _ in range(5)]
+    deadline = time.monotonic() + 60
     while not any(f.running() for f in futures):
+        assert time.monotonic() < deadline, "the pool never started a job"
         time.sleep(0.05)
     procs = list(pool._processes.values())
     t0 = time.monotonic()

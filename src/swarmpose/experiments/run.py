@@ -67,7 +67,7 @@ def run_suite(name: str, sequences: list[Path], out_dir: Path, *, runs: int = 5,
         for cell, (seq, e, cfg) in planned.items():
             setup = prepare_track(seq, cfg, cell)  # IK floor once per cell, before the workers start
             cell.mkdir(parents=True, exist_ok=True)
-            write_config(cell, setup, runs)
+            write_config(cell, setup, runs, resume)
             cells.append((e, Path(seq), cell, setup))
             jobs += [Job(str(seq), asdict(cfg), k, str(cell), resume) for k in range(runs)]
     except BaseException:

@@ -160,8 +160,10 @@ def uniform_clock(params: np.ndarray, frame_times: np.ndarray, frame_rate: float
     """
     p = np.asarray(params, dtype=np.float64)
     t = np.asarray(frame_times, dtype=np.float64)
-    if t.shape != (p.shape[0],) or not np.isfinite(t).all() or (np.diff(t) <= 0).any():
-        raise ConfigError(f"frame_times must be {p.shape[0]} increasing finite seconds, got shape {t.shape}")
+    if t.shape != (p.shape[0],):
+        raise ConfigError(f"frame_times must hold {p.shape[0]} times (one per pose), got shape {t.shape}")
+    if not np.isfinite(t).all() or (np.diff(t) <= 0).any():
+        raise ConfigError("frame_times must be finite and increasing (seconds)")
     if not frame_rate > 0:
         raise ConfigError(f"frame_rate must be > 0, got {frame_rate!r}")
     step = 1.0 / frame_rate

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import zipfile
+import zlib
 from pathlib import Path
 from typing import Any
 
@@ -54,7 +55,7 @@ def load_npz(path: Path, required: tuple[str, ...] = ()) -> dict[str, np.ndarray
             if missing:
                 raise FormatError(f"missing array(s) {missing}", path=path)
             return {k: z[k] for k in z.files}
-    except FormatError:
-        raise
-    except (zipfile.BadZipFile, KeyError, OSError, ValueError, EOFError) as exc:
+    except (FormatError, PermissionError, FileNotFoundError):
+        raise  # a permission or a missing file is said as such (the CLI names the path)
+    except (zipfile.BadZipFile, zlib.error, KeyError, OSError, ValueError, EOFError, SyntaxError) as exc:
         raise FormatError(f"cannot read .npz (truncated or corrupt?): {exc}", path=path) from None

@@ -233,7 +233,7 @@ def as_results(results: str | os.PathLike[str] | Results) -> Results:
     return results if isinstance(results, Results) else load_results(results)
 
 
-def _load_run(run_dir: Path, run: int) -> RunData:
+def _load_run(run_dir: Path, run: int, fps: float = 0.0) -> RunData:
     track = load_npz(run_dir / "track.npz", ("params",))
     jnt = load_npz(run_dir / "joints.npz", ("joints", "gt_joints"))
     joints = np.asarray(jnt["joints"], dtype=np.float64)
@@ -255,7 +255,8 @@ def _load_run(run_dir: Path, run: int) -> RunData:
     return RunData(
         run=run, path=run_dir, params=params, joints=joints, gt_joints=gt,
         frame_indices=arr(track, "frame_indices", np.arange(T)).astype(np.int64),
-        frame_times=arr(jnt, "frame_times", np.arange(T, dtype=np.float64)).astype(np.float64),
+        # a folder without stored times: evenly spaced at the tracking rate (1 s apart if that is unknown)
+        frame_times=arr(jnt, "frame_times", np.arange(T, dtype=np.float64) / (fps if fps > 0 else 1.0)).astype(np.float64),
         d_per_frame=arr(track, "d_per_frame", d_default).astype(np.float64),
         seconds=arr(track, "seconds", np.zeros(T)).astype(np.float64),
         evaluations=arr(track, "evaluations", np.zeros(T, np.int64)),
@@ -268,7 +269,10 @@ def _recompute_summary(config: dict[str, Any], runs: list[RunData], ik_floor: fl
     """The aggregate of :func:`swarmpose.track.runner.track_runs`, from the runs' joints."""
     from swarmpose.metrics import aggregate_runs, track_errors
 
-    errs = [track_errors(r.joints, r.gt_joints) for r in runs]
+    try:
+        errs = [track_errors(r.joints, r.gt_joints) for r in runs]
+    except ValueError as exc:  # no valid ground truth, or a non-finite estimate
+        raise FormatError(f"cannot score the runs: {exc}", path=runs[0].path.parent) from None
     agg = aggregate_runs(errs)
     worst = runs[int(agg["worst"]["run"])]
     return {
@@ -341,11 +345,13 @@ def load_results(results_dir: str | os.PathLike[str]) -> Results:
             why = "in progress" if (d / "progress.npz").is_file() else "no track.npz/joints.npz"
             skipped.append(f"{d.name} ({why})")
             continue
-        runs.append(_load_run(d, k))
+        fps = config.get("fps")
+        runs.append(_load_run(d, k, float(fps) if isinstance(fps, int | float) else 0.0))
     if not runs:
         extra = f" ({', '.join(skipped)})" if skipped else ""
         hint = ("is tracking still running? If it was interrupted, continue it with the same `swarmpose track` "
-                "command and --resume" if any("in progress" in k for k in skipped) else "is tracking still running?")
+                "(or `compare`) command and --resume" if any("in progress" in k for k in skipped)
+                else "is tracking still running?")
         raise DataError(f"{root}: no finished run (run_XXX/track.npz and joints.npz){extra}; {hint}")
     T = runs[0].joints.shape[0]
     if any(r.joints.shape[0] != T for r in runs):

@@ -92,10 +92,11 @@ class SynthReport:
         IoU of the image-derived silhouette against the exact mask per frame and view (NaN where the
         person is in neither).
     fs : numpy.ndarray, shape (E, C)
-        Tracker model's ``f_s`` at its IK pose on the evaluated frames ``fs_frames``.
+        Tracker model's ``f_s`` at its IK pose (the smooth fit, the tracker's start pose) on the evaluated
+        frames ``fs_frames``.
     fs_frames : numpy.ndarray, shape (E,)
     ik_floor_mm : float
-        Mean per-frame 3D error of the IK fit on the evaluated frames.
+        Mean per-frame 3D error of the best (polished) IK fit on the evaluated frames: the IK floor.
     marker_stats : MarkerStats or None
     timings : dict of str to float
         Seconds per stage.

@@ -261,7 +261,7 @@ def track_runs(sequence: str | Path, config: TrackConfig, runs: int, out_dir: Pa
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
         setup = prepare_track(sequence, config, out_dir)  # fits and caches the IK floor once
-        write_config(out_dir, setup, runs)
+        write_config(out_dir, setup, runs, resume)
     except BaseException:
         close_client(scheduler)
         if fresh and out_dir.is_dir() and not any(out_dir.iterdir()):

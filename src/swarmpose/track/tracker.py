@@ -130,12 +130,17 @@ def source_revision() -> str | None:
     tracked files), or None outside a git checkout: results name the code that made them."""
     import subprocess
 
-    here = Path(__file__).resolve().parent
+    pkg = Path(__file__).resolve().parents[1]  # the swarmpose package folder
+    env = {**os.environ, "GIT_OPTIONAL_LOCKS": "0"}
+
+    def git(*args: str) -> str:
+        return subprocess.run(["git", "-C", str(pkg), *args], capture_output=True, text=True, timeout=5,
+                              check=True, env=env).stdout.strip()
+
     try:
-        head = subprocess.run(["git", "-C", str(here), "rev-parse", "HEAD"], capture_output=True, text=True,
-                              timeout=5, check=True).stdout.strip()
-        dirty = subprocess.run(["git", "-C", str(here), "status", "--porcelain", "--untracked-files=no", "--", "."],
-                               capture_output=True, text=True, timeout=5, check=True).stdout.strip()
+        git("ls-files", "--error-unmatch", "__init__.py")  # tracked here: not a copy inside another repository
+        head = git("rev-parse", "HEAD")
+        dirty = git("status", "--porcelain", "--untracked-files=no", "--", ".")
     except (OSError, subprocess.SubprocessError):
         return None
     return head + ("+dirty" if dirty else "") if head else None
@@ -443,11 +448,11 @@ def run_tracker(
                 evals[:start_k], seconds[:start_k] = z["evaluations"][:start_k], z["seconds"][:start_k]
                 x_prev = z["x_prev"].copy()
                 rng.bit_generator.state = json.loads(str(z["rng_state"]))
+                if "carry_x" in z:
+                    carry = optim.ParticleSet(z["carry_x"].copy(), z["carry_w"].copy())
             except (ValueError, TypeError, KeyError) as exc:
                 raise FormatError(f"does not fit this run ({exc}); delete it to track run {run} afresh",
                                   path=progress_file) from None
-            if "carry_x" in z:
-                carry = optim.ParticleSet(z["carry_x"].copy(), z["carry_w"].copy())
 
     seq = open_sequence(setup.sequence_path)
     backgrounds = seq.backgrounds() if cfg.fitness_kind in IMAGE_FITNESS else None
@@ -510,19 +515,20 @@ def _write_run(run_dir: Path, setup: TrackSetup, result: RunResult, d_per_frame:
                                                      indent=1) + "\n")
 
 
-def write_config(out_dir: Path, setup: TrackSetup, runs: int) -> None:
+def write_config(out_dir: Path, setup: TrackSetup, runs: int, resume: bool = False) -> None:
     """Write ``out_dir/config.json``. On a resume the first session's ``created`` is kept and each earlier
     session's time, versions, sequence path and runs are appended to ``sessions``, so that a folder tracked
     in several sessions (maybe by different code or from a moved sequence) says so."""
     record = config_record(setup, runs)
     old_file = out_dir / "config.json"
-    if old_file.is_file():
+    if resume and old_file.is_file():
         try:
             old = read_json_object(old_file)
         except (FormatError, OSError):
             old = {}
         if old:
-            record["sessions"] = [*old.get("sessions", []),
+            earlier = old.get("sessions") if isinstance(old.get("sessions"), list) else []
+            record["sessions"] = [*earlier,
                                   {k: old.get(k) for k in ("created", "versions", "sequence", "runs")}]
             record["created"] = old.get("created", record["created"])
             record["resumed"] = time.strftime("%Y-%m-%dT%H:%M:%S%z")
