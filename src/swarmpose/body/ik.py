@@ -133,7 +133,7 @@ def fit_ik(
         w_rest[model.group("root")] = 0.0
 
     params = np.empty((T, D))
-    best = np.empty((T, D))
+    best = np.empty((T, D))  # the polished fits (the smooth ones without polish)
     x = initial_root_pose(model, gt[0]) if init is None else np.clip(np.asarray(init, float), lo, hi)
     for t in range(T):
         target = gt[t].ravel()
@@ -153,16 +153,15 @@ def fit_ik(
                             x_scale=np.where(model.is_rotation, 1.0, 100.0), max_nfev=max_nfev,
                             xtol=1e-10, ftol=1e-10)
         x = sol.x
-        params[t] = x
+        params[t] = best[t] = x
         if polish:
             fit = least_squares(lambda p, target=target: model.joints15(p)[0].ravel() - target,
                                 np.clip(x, lo_in, hi_in), jac=lambda p: jacobian(p)[: 45], bounds=(lo, hi),
                                 method="trf", x_scale=np.where(model.is_rotation, 1.0, 100.0), max_nfev=max_nfev,
                                 xtol=1e-10, ftol=1e-10)
-            best[t] = fit.x if fit.cost < 0.5 * np.sum(residuals(x)[: 45] ** 2) else x
+            if fit.cost < 0.5 * np.sum(residuals(x)[: 45] ** 2):
+                best[t] = fit.x
         if progress is not None:
             progress(t)
-    if not polish:
-        best = params.copy()
     err = np.linalg.norm(model.joints15(best) - gt, axis=-1)
     return IKResult(params=params, joint_error_mm=err, floor_params=best)

@@ -111,9 +111,10 @@ def export(
     fps = res.fps
     if not fps > 0:
         raise ConfigError(f"{results_dir / 'config.json'}: no tracking frame rate ('fps') recorded")
-    params, times, resampled = uniform_clock(r.params, r.frame_times, fps) if resample else (r.params, r.frame_times, False)
+    even_params, _, uneven = uniform_clock(r.params, r.frame_times, fps)
+    params = even_params if resample else r.params
+    resampled = resample and uneven
     d = np.diff(r.frame_times)
-    uneven = d.size > 0 and bool(np.any(np.abs(d - 1.0 / fps) > 0.01 / fps))
     if resampled:
         err_console.print(f"note: the tracked frames are {1000 * d.min():.0f}-{1000 * d.max():.0f} ms apart; "
                           f"the poses are interpolated onto an even {1000 / fps:.1f} ms clock ({len(params)} frames "

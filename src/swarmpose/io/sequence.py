@@ -37,6 +37,7 @@ import numpy as np
 from swarmpose.body.measurements import SubjectMeasurements
 from swarmpose.camera import Camera, load_rig, save_rig
 from swarmpose.errors import ConfigError, DataError, FormatError, ShapeError
+from swarmpose.io.files import load_npz
 
 __all__ = [
     "SEQUENCE_FORMAT",
@@ -742,17 +743,11 @@ def write_sequence(path: str | os.PathLike[str], seq: MultiViewSequence, *, over
 def _load_npz(path: Path, keys: Sequence[str], optional: Sequence[str] = ()) -> dict[str, np.ndarray]:
     if not path.is_file():
         raise DataError(f"{path}: missing file (listed in {path.parent / _META})")
-    try:
-        with np.load(path, allow_pickle=False) as npz:
-            names = set(npz.files)
-            for k in keys:
-                if k not in names:
-                    raise FormatError(f"missing array {k!r}", path=path, field=k)
-            return {k: npz[k] for k in list(keys) + [o for o in optional if o in names]}
-    except FormatError:
-        raise
-    except (zipfile.BadZipFile, ValueError, OSError, EOFError, KeyError) as exc:
-        raise FormatError(f"cannot read .npz (truncated or corrupt?): {exc}", path=path) from None
+    arrays = load_npz(path)
+    for k in keys:
+        if k not in arrays:
+            raise FormatError(f"missing array {k!r}", path=path, field=k)
+    return {k: arrays[k] for k in [*keys, *(o for o in optional if o in arrays)]}
 
 
 def _field(meta: Mapping[str, Any], name: str, path: Path, kinds: tuple[type, ...]) -> Any:

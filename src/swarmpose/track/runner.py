@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from swarmpose.errors import FormatError
+from swarmpose.errors import ConfigError, DataError, FormatError
 from swarmpose.io.files import read_json_object
 from swarmpose.metrics import TrackErrors, aggregate_runs
 from swarmpose.track.tracker import (
@@ -64,8 +64,6 @@ def resolve_sequence(source: str | Path, *, cache_dir: Path | None = None, progr
 
 def _check_sequence_folder(source: str | Path, p: Path) -> None:
     """Say what a source that is not a sequence folder is (a results folder, some other file)."""
-    from swarmpose.errors import DataError
-
     if not str(source).strip():
         raise DataError("the source is empty: give a sequence folder, a .bvh clip or humaneva:PATH")
     if p.is_file():
@@ -118,7 +116,6 @@ def connect_scheduler(address: str, timeout_s: float = 20.0) -> Any:
 
     Called before any slow preparation (the IK fit), so a wrong ``--scheduler`` fails in seconds.
     """
-    from swarmpose.errors import ConfigError
 
     try:
         from dask.distributed import Client
@@ -196,7 +193,6 @@ def check_results_folder(out_dir: Path, sequence: str | Path, config: TrackConfi
     added: runs are independent).
     """
     from swarmpose.datasets import is_dataset_spec
-    from swarmpose.errors import ConfigError
 
     cfg_file = out_dir / "config.json"
     started = sorted({p.parent.name for p in out_dir.glob("run_*/*.npz")})

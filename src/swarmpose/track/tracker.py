@@ -37,7 +37,7 @@ from swarmpose.body.priors import HardPriors
 from swarmpose.body.spec import Subject, load_spec
 from swarmpose.errors import ConfigError, DataError, FormatError
 from swarmpose.io.files import load_npz, read_json_object
-from swarmpose.metrics import track_errors
+from swarmpose.metrics import track_errors, valid_frames
 from swarmpose.track.motion import parse_motion
 
 __all__ = ["TrackConfig", "RunResult", "prepare_track", "run_tracker", "TrackSetup", "versions", "model_identity",
@@ -179,7 +179,7 @@ class TrackSetup:
     @property
     def valid(self) -> np.ndarray:
         """``(T,)`` frames whose ground truth is finite: errors and the IK floor use only these."""
-        return np.isfinite(self.gt_joints).all(axis=(1, 2))
+        return valid_frames(self.gt_joints)
 
     @property
     def ik_floor_mm(self) -> float:
@@ -317,7 +317,7 @@ def prepare_track(sequence_path: str | Path, config: TrackConfig, out_dir: Path 
         if cached is not None:
             ik_params, ik_err = cached
         else:
-            valid = np.isfinite(gt).all(axis=(1, 2))
+            valid = valid_frames(gt)
             if not valid[0]:
                 raise DataError(f"{sequence_path}: the ground truth of the first tracked frame "
                                 f"({int(frames[0])}) is invalid; the start pose comes from it")
