@@ -116,7 +116,6 @@ def connect_scheduler(address: str, timeout_s: float = 20.0) -> Any:
 
     Called before any slow preparation (the IK fit), so a wrong ``--scheduler`` fails in seconds.
     """
-
     try:
         from dask.distributed import Client
     except ImportError:
