@@ -26,13 +26,16 @@ def report(
     sequence: Annotated[Path | None, typer.Option("--sequence", help="The tracked sequence folder, if it has "
                                                                      "moved since tracking.")] = None,
     out: Annotated[Path | None, typer.Option("--out", help="Report folder (default RESULTS_DIR/report).")] = None,
+    full_views: Annotated[bool, typer.Option("--full-views", help="Draw the whole camera views in the overlays "
+                                                                  "(default: each view cut to the person).")] = False,
     json_out: Annotated[bool, typer.Option("--json", help="Print one JSON object with the paths written.")] = False,
 ) -> None:
     """Write a report: error-over-time and per-joint plots, overlay images (and a video), summary.md.
 
     The error plot shows D per frame of each run, their mean and the IK floor (thesis Fig. 6.5);
     the overlays draw the tracked cones (left limbs blue, right limbs vermillion, torso/head green)
-    and the ground-truth skeleton (yellow) on every camera view.
+    and the ground-truth skeleton (yellow) on every camera view, cut to the person; runs tracked on
+    2D markers also show the detections (sky-blue rings).
     """
     from swarmpose.errors import ConfigError
     from swarmpose.report import make_report
@@ -45,7 +48,7 @@ def report(
     if video_format not in ("gif", "mp4"):  # before any figure is written
         raise ConfigError(f"--format must be gif or mp4, got {video_format!r}")
     paths = make_report(results_dir, video=video, overlay_frames=frames, run=run, out_dir=out,
-                        sequence=sequence, video_format=video_format)
+                        sequence=sequence, video_format=video_format, crop=not full_views)
     for note in paths.notes:
         err_console.print(f"[yellow]note:[/yellow] {escape(note)}", highlight=False)
     if json_out:

@@ -91,6 +91,7 @@ def make_report(
     sequence: str | os.PathLike[str] | None = None,
     video_format: str = "gif",
     video_scale: float = 0.5,
+    crop: bool = True,
 ) -> ReportPaths:
     """Write the whole report of a results folder.
 
@@ -111,6 +112,8 @@ def make_report(
     video_format : {"gif", "mp4"}, default "gif"
     video_scale : float, default 0.5
         Resize factor of the video pictures.
+    crop : bool, default True
+        Cut the overlays' views to the person (False: the whole camera views).
 
     Returns
     -------
@@ -140,9 +143,10 @@ def make_report(
             notes.append(f"overlays skipped: {exc}")
         else:
             if overlay_frames > 0:
-                over = overlays(res, overlay_frames, run=run, out_dir=out / "overlays", sequence=sequence)
+                over = overlays(res, overlay_frames, run=run, out_dir=out / "overlays", sequence=sequence,
+                                crop=crop)
             if video:
                 vid = overlay_video(res, out / f"overlay_run{run:03d}.{video_format}", run=run,
-                                    fmt=video_format, scale=video_scale, sequence=sequence)
+                                    fmt=video_format, scale=video_scale, sequence=sequence, crop=crop)
     summary = write_summary(res, out=out / "summary.md", figures=figures, overlays=over, video=vid, notes=notes)
     return ReportPaths(summary=summary, figures=figures, overlays=over, video=vid, notes=notes)

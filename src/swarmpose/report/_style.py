@@ -10,6 +10,8 @@ SIDE_RGB: dict[str, tuple[int, int, int]] = {
 }
 #: Ground-truth skeleton in the overlays.
 GT_RGB: tuple[int, int, int] = (240, 228, 66)
+#: 2D marker detections (what a marker tracker was given) in the overlays: sky blue.
+DETECTION_RGB: tuple[int, int, int] = (86, 180, 233)
 #: IK floor in the plots.
 IK_RGB: tuple[int, int, int] = (120, 120, 120)
 

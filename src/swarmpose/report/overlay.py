@@ -3,8 +3,12 @@
 Every view of a frame is drawn as a tile: the camera image in grey, each truncated cone of the
 tracked pose filled semi-transparently and outlined (left limbs blue, right limbs vermillion, torso
 and head green; far cones first), and the ground-truth 15-joint skeleton in yellow with a dark
-border. The tiles sit side by side (at most ``columns`` per row) under a title line with the frame
-index, its time and the 3D error D, above a legend (thesis Fig. 6.3/6.6 show such views).
+border. Runs tracked on 2D markers also show the frame's detections (sky-blue rings, false ones
+included: what the tracker was given). The tiles sit side by side (at most ``columns`` per row) under a title line with the frame
+index, its time and the 3D error D, above a legend (thesis Fig. 6.3/6.6 show such views). The
+report cuts each view to the person (:func:`crop_boxes`: the estimated and true joints with a
+margin, one box per view for a whole video so that it does not jitter) and draws the cut-outs at the
+views' height, so the body is large enough to judge; ``crop=False`` keeps the whole views.
 
 Cone outlines come from :func:`swarmpose.render.project_cones` (the same geometry the fitness
 uses: exact occluding contours of the truncated cones, with lens distortion).
@@ -21,10 +25,10 @@ import numpy as np
 
 from swarmpose.errors import ConfigError, DataError
 from swarmpose.joints import BONES15
-from swarmpose.report._style import GT_RGB, SIDE_RGB, bgr
+from swarmpose.report._style import DETECTION_RGB, GT_RGB, SIDE_RGB, bgr
 from swarmpose.report.results import Results, as_results
 
-__all__ = ["render_overlay", "overlays", "overlay_video", "choose_frames"]
+__all__ = ["render_overlay", "overlays", "overlay_video", "choose_frames", "crop_boxes"]
 
 _FONT = cv2.FONT_HERSHEY_SIMPLEX
 _SHIFT = 4  # sub-pixel bits for cv2 drawing
@@ -43,8 +47,9 @@ def _label(img: np.ndarray, text: str, org: tuple[int, int], scale: float = 0.55
 
 
 def _draw_view(tile: np.ndarray, polys: list[np.ndarray], depths: list[float], sides: Sequence[str],
-               gt_uv: np.ndarray | None, gt_ok: np.ndarray | None, alpha: float, line: int) -> None:
-    """Draw cones (far first) and the ground-truth skeleton onto one BGR tile, in place."""
+               gt_uv: np.ndarray | None, gt_ok: np.ndarray | None, alpha: float, line: int,
+               detections: np.ndarray | None = None) -> None:
+    """Draw cones (far first), the 2D detections and the ground-truth skeleton onto one BGR tile, in place."""
     for k in np.argsort(-np.asarray(depths)):
         poly = polys[k]
         if poly is None:
@@ -55,6 +60,12 @@ def _draw_view(tile: np.ndarray, polys: list[np.ndarray], depths: list[float], s
         cv2.fillPoly(layer, pts, colour, cv2.LINE_AA, _SHIFT)
         cv2.addWeighted(layer, alpha, tile, 1.0 - alpha, 0.0, dst=tile)
         cv2.polylines(tile, pts, True, colour, line, cv2.LINE_AA, _SHIFT)
+    if detections is not None:
+        det = np.asarray(detections, dtype=np.float64).reshape(-1, 2)
+        for uv in det[np.all(np.isfinite(det), axis=1) & np.all(np.abs(det) < 1e5, axis=1)]:
+            c = tuple(_fixed(uv))
+            cv2.circle(tile, c, (line + 4) * _ONE, (20, 20, 20), line + 2, cv2.LINE_AA, _SHIFT)
+            cv2.circle(tile, c, (line + 4) * _ONE, bgr(DETECTION_RGB), line, cv2.LINE_AA, _SHIFT)
     if gt_uv is None:
         return
     gt_col = bgr(GT_RGB)
@@ -69,13 +80,15 @@ def _draw_view(tile: np.ndarray, polys: list[np.ndarray], depths: list[float], s
         cv2.circle(tile, c, (line + 1) * _ONE, gt_col, -1, cv2.LINE_AA, _SHIFT)
 
 
-def _legend(width: int, height: int, scale: float) -> np.ndarray:
+def _legend(width: int, height: int, scale: float, detections: bool = False) -> np.ndarray:
     bar = np.full((height, width, 3), 40, np.uint8)
     x = 10
     y = height // 2
     s = 0.5 * scale
     items = [(SIDE_RGB["left"], "left limbs"), (SIDE_RGB["right"], "right limbs"),
              (SIDE_RGB["center"], "torso / head"), (GT_RGB, "ground truth (15 joints)")]
+    if detections:
+        items.append((DETECTION_RGB, "2D detections"))
     for rgb, text in items:
         sw = max(int(14 * scale), 6)
         cv2.rectangle(bar, (x, y - sw // 2), (x + sw, y + sw // 2), bgr(rgb), -1)
@@ -84,6 +97,58 @@ def _legend(width: int, height: int, scale: float) -> np.ndarray:
         (w, _), _ = cv2.getTextSize(text, _FONT, s, 1)
         x += w + 22
     return bar
+
+
+#: Width / height of a cut-out view (a standing person is taller than wide).
+CROP_ASPECT = 0.75
+
+
+def crop_boxes(cameras: Sequence, points: np.ndarray, *, margin: float = 0.25, aspect: float = CROP_ASPECT,
+               min_height_frac: float = 0.3) -> list[tuple[float, float, float, float]]:
+    """Per view, a box ``(x0, y0, x1, y1)`` in pixels around the projections of ``points``.
+
+    The box is the points' bounding box grown by ``margin`` of its height on every side (the cones'
+    thickness, the head and the feet lie beyond the joints), widened or heightened to ``aspect``
+    (width / height), and at least ``min_height_frac`` of the image tall (a distant view is not
+    blown up beyond ~3x). It may reach past the image (drawn dark there). A view that sees none of the
+    points gets the whole image, padded to the aspect.
+
+    Parameters
+    ----------
+    cameras : sequence of Camera
+    points : numpy.ndarray, shape (..., 3)
+        World points, mm (e.g. the estimated and true joints of one frame, or of a whole run).
+    """
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    pts = pts[np.all(np.isfinite(pts), axis=1)]
+    boxes = []
+    for cam in cameras:
+        W, H = cam.width, cam.height
+        uv = np.zeros((0, 2))
+        if len(pts):
+            uv, z = cam.project_with_depth(pts)
+            uv = uv[(z > 1.0) & np.all(np.isfinite(uv), axis=1) & np.all(np.abs(uv) < 1e5, axis=1)]
+        if len(uv) == 0:
+            x0, y0, x1, y1 = 0.0, 0.0, float(W), float(H)
+        else:
+            (x0, y0), (x1, y1) = uv.min(axis=0), uv.max(axis=0)
+            grow = margin * max(y1 - y0, (x1 - x0) / aspect, 1.0)
+            x0, y0, x1, y1 = x0 - grow, y0 - grow, x1 + grow, y1 + grow
+        cx, cy = 0.5 * (x0 + x1), 0.5 * (y0 + y1)
+        h = max(y1 - y0, (x1 - x0) / aspect, min_height_frac * H)
+        w = aspect * h
+        boxes.append((cx - w / 2, cy - h / 2, cx + w / 2, cy + h / 2))
+    return boxes
+
+
+def _cut(img: np.ndarray, box: tuple[float, float, float, float], size: tuple[int, int]) -> np.ndarray:
+    """The part of ``img`` inside ``box`` resized to ``size`` = (width, height); dark beyond the image."""
+    x0, y0, x1, y1 = box
+    tw, th = size
+    sx, sy = tw / (x1 - x0), th / (y1 - y0)
+    M = np.array([[sx, 0.0, -x0 * sx], [0.0, sy, -y0 * sy]])
+    interp = cv2.INTER_AREA if sx < 1 else cv2.INTER_LINEAR
+    return cv2.warpAffine(img, M, (tw, th), flags=interp, borderMode=cv2.BORDER_CONSTANT, borderValue=(30, 30, 30))
 
 
 def render_overlay(
@@ -98,6 +163,8 @@ def render_overlay(
     columns: int = 4,
     scale: float = 1.0,
     legend: bool = True,
+    detections: Sequence[np.ndarray] | None = None,
+    crop: Sequence[tuple[float, float, float, float]] | None = None,
 ) -> np.ndarray:
     """Draw one frame: every view with the model's cones and the ground-truth skeleton.
 
@@ -123,6 +190,11 @@ def render_overlay(
         Resize factor of the whole picture.
     legend : bool, default True
         Add the colour legend below the views.
+    detections : sequence of C arrays of shape (Q_c, 2), optional
+        2D marker detections per view, pixels (drawn as rings; a marker tracker's input).
+    crop : sequence of C boxes (x0, y0, x1, y1), optional
+        Cut each view to its box (pixels, e.g. from :func:`crop_boxes`) and draw it at the views'
+        height (the boxes share one aspect ratio: the first box's); None draws the whole views.
 
     Returns
     -------
@@ -140,18 +212,35 @@ def render_overlay(
         raise ConfigError(f"alpha must be in [0, 1], got {alpha}")
     if not scale > 0:
         raise ConfigError(f"scale must be > 0, got {scale}")
+    if detections is not None and len(detections) != C:
+        raise ConfigError(f"detections must give one array per view ({C}), got {len(detections)}")
+    if crop is not None:
+        crop = [tuple(float(v) for v in b) for b in crop]
+        if len(crop) != C or any(len(b) != 4 or not (b[2] > b[0] and b[3] > b[1]) for b in crop):
+            raise ConfigError(f"crop must give one box (x0, y0, x1, y1) with x1 > x0, y1 > y0 per view ({C})")
     pose = model.check_poses(pose)
     if pose.shape[0] != 1:
         raise ConfigError(f"render_overlay draws one pose, got {pose.shape[0]}")
     pc = project_cones(model, pose, cams)
     sides = model.cone_arrays.sides
     line = 2 if max(W, H) >= 400 else 1
+    TW, TH = (W, H) if crop is None else (max(1, round(H * (crop[0][2] - crop[0][0]) / (crop[0][3] - crop[0][1]))), H)
     tiles = []
     for c, cam in enumerate(cams):
         if images is not None:
             tile = cv2.cvtColor(np.ascontiguousarray(images[c]), cv2.COLOR_GRAY2BGR)
         else:
             tile = np.full((H, W, 3), 30, np.uint8)
+        # drawn after the cut, in the cut-out's pixels, so that lines stay sharp
+        origin, zoom = np.zeros(2), np.ones(2)
+        if crop is not None:
+            x0, y0, x1, y1 = crop[c]
+            tile = _cut(tile, crop[c], (TW, TH))
+            origin, zoom = np.array([x0, y0]), np.array([TW / (x1 - x0), TH / (y1 - y0)])
+
+        def to_tile(uv: np.ndarray, origin=origin, zoom=zoom) -> np.ndarray:
+            return (np.asarray(uv, dtype=np.float64) - origin) * zoom
+
         polys: list[np.ndarray | None] = []
         depths: list[float] = []
         for k in range(len(sides)):
@@ -160,23 +249,26 @@ def render_overlay(
                 polys.append(None)
                 depths.append(0.0)
                 continue
-            polys.append(pc.vertices[0, c, k, :n])
+            polys.append(to_tile(pc.vertices[0, c, k, :n]))
             depths.append(float(np.nanmean(pc.depth[0, c, k, :n])))
         gt_uv = gt_ok = None
         if gt_joints is not None:
             uv, z = cam.project_with_depth(np.asarray(gt_joints, dtype=np.float64))
             gt_ok = (z > 1.0) & np.all(np.isfinite(uv), axis=1) & np.all(np.abs(uv) < 1e5, axis=1)
-            gt_uv = np.where(gt_ok[:, None], uv, 0.0)
-        _draw_view(tile, polys, depths, sides, gt_uv, gt_ok, alpha, line)
+            gt_uv = to_tile(np.where(gt_ok[:, None], uv, 0.0))
+        det = None
+        if detections is not None:
+            det = to_tile(np.asarray(detections[c], dtype=np.float64).reshape(-1, 2))
+        _draw_view(tile, polys, depths, sides, gt_uv, gt_ok, alpha, line, det)
         _label(tile, cam.name, (8, 22))
         tiles.append(tile)
     cols = max(1, min(int(columns), C))
     rows = -(-C // cols)
     gap = 4
-    grid = np.full((rows * H + (rows - 1) * gap, cols * W + (cols - 1) * gap, 3), 60, np.uint8)
+    grid = np.full((rows * TH + (rows - 1) * gap, cols * TW + (cols - 1) * gap, 3), 60, np.uint8)
     for i, tile in enumerate(tiles):
         r, q = divmod(i, cols)
-        grid[r * (H + gap):r * (H + gap) + H, q * (W + gap):q * (W + gap) + W] = tile
+        grid[r * (TH + gap):r * (TH + gap) + TH, q * (TW + gap):q * (TW + gap) + TW] = tile
     if scale != 1.0:
         interp = cv2.INTER_AREA if scale < 1 else cv2.INTER_LINEAR
         grid = cv2.resize(grid, (max(1, round(grid.shape[1] * scale)), max(1, round(grid.shape[0] * scale))),
@@ -188,7 +280,7 @@ def render_overlay(
         cv2.putText(head, title, (10, int(24 * ts) + 2), _FONT, 0.75 * ts, (245, 245, 245), 1, cv2.LINE_AA)
         parts.insert(0, head)
     if legend:
-        parts.append(_legend(grid.shape[1], int(30 * ts) + 6, ts * 1.4))
+        parts.append(_legend(grid.shape[1], int(30 * ts) + 6, ts * 1.4, detections is not None))
     out = np.vstack(parts)
     return cv2.cvtColor(out, cv2.COLOR_BGR2RGB)
 
@@ -254,13 +346,20 @@ class _FrameSource:
     """Images per processed frame from the sequence (or none when it cannot be opened)."""
 
     def __init__(self, res: Results, sequence: str | os.PathLike[str] | None):
+        from swarmpose.track.tracker import MARKER_FITNESS
+
         self.seq = res.open_sequence(sequence)
         self.cameras = list(self.seq.cameras)
         self.backgrounds = self.seq.backgrounds()
+        self.on_markers = res.config.get("fitness_kind") in MARKER_FITNESS
 
     def images(self, k: int) -> np.ndarray | None:
         img = self.seq.images(k)
         return img if img is not None else self.backgrounds
+
+    def detections(self, k: int) -> list[np.ndarray] | None:
+        """The 2D detections of frame ``k`` when the run tracked markers, else None."""
+        return self.seq.markers(k) if self.on_markers else None
 
     def close(self) -> None:
         self.seq.close()
@@ -275,6 +374,7 @@ def overlays(
     sequence: str | os.PathLike[str] | None = None,
     scale: float = 1.0,
     alpha: float = 0.35,
+    crop: bool = True,
 ) -> list[Path]:
     """Write one overlay PNG per chosen frame (all views side by side; see :func:`render_overlay`).
 
@@ -291,6 +391,8 @@ def overlays(
     sequence : path-like, optional
         The sequence folder, when ``config.json``'s path no longer points to it.
     scale, alpha : see :func:`render_overlay`.
+    crop : bool, default True
+        Cut each view to the person (estimated and true joints, :func:`crop_boxes`); False: whole views.
 
     Returns
     -------
@@ -315,8 +417,10 @@ def overlays(
     try:
         for i in pos:
             k = int(r.frame_indices[i])
+            boxes = crop_boxes(src.cameras, np.vstack([r.joints[i], r.gt_joints[i]])) if crop else None
             rgb = render_overlay(model, r.params[i], src.cameras, src.images(k), r.gt_joints[i],
-                                 title=_title(res, run, int(i)), scale=scale, alpha=alpha)
+                                 title=_title(res, run, int(i)), scale=scale, alpha=alpha,
+                                 detections=src.detections(k), crop=boxes)
             p = out / f"overlay_run{run:03d}_frame{k:06d}.png"
             if not cv2.imwrite(str(p), cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR)):
                 raise DataError(f"{p}: cannot write the PNG")
@@ -402,6 +506,7 @@ def overlay_video(
     scale: float = 0.5,
     sequence: str | os.PathLike[str] | None = None,
     alpha: float = 0.35,
+    crop: bool = True,
 ) -> Path:
     """Write the overlays of every processed frame as an animated GIF or an MP4 video.
 
@@ -426,6 +531,9 @@ def overlay_video(
         The sequence folder, when ``config.json``'s path no longer points to it.
     alpha : float
         Cone fill opacity.
+    crop : bool, default True
+        Cut each view to the region the person moves through in the whole run (one box per view, so
+        the picture does not jitter); False: whole views.
 
     Returns
     -------
@@ -458,10 +566,13 @@ def overlay_video(
     gif_frames: list = []
     mp4 = _Mp4Writer(out, rate) if fmt == "mp4" else None
     try:
-        for i in range(0, len(r.frame_indices), every):
+        shown = range(0, len(r.frame_indices), every)
+        boxes = crop_boxes(src.cameras, np.concatenate([r.joints[shown], r.gt_joints[shown]])) if crop else None
+        for i in shown:
             k = int(r.frame_indices[i])
             rgb = render_overlay(model, r.params[i], src.cameras, src.images(k), r.gt_joints[i],
-                                 title=_title(res, run, i), scale=scale, alpha=alpha)
+                                 title=_title(res, run, i), scale=scale, alpha=alpha,
+                                 detections=src.detections(k), crop=boxes)
             if mp4 is not None:
                 mp4.append(rgb)
             else:
