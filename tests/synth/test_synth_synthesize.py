@@ -104,6 +104,7 @@ def test_cli_synth_json_and_show(walk_clip_path, short_walk: SynthReport, tmp_pa
     data = json.loads(res.stdout)  # exactly one JSON object on stdout
     assert data["frames"] == 3 and data["views"] == 4 and data["seconds"] > 0
     assert data["silhouette_iou"]["min"] >= 0.9 and data["model_fs_at_gt"]["mean"] is not None
+    assert data["warnings"] == []
     assert 250.0 < data["subject_measurements"]["LSHO-RSHO"] < 450.0  # what the tracker sizes its cones with
     assert "synth" in res.stderr  # the progress bar goes to stderr
     # a second run into the same folder needs --force
@@ -149,6 +150,20 @@ def test_cli_synth_albedo(walk_clip_path, tmp_path):
         assert (a - b)[mask].max() > 60 and (a - b)[mask].min() < -20
     res = runner.invoke(app, [*args, "--out", str(tmp_path / "bad"), "--albedo", "shrt=0.5"])
     assert res.exit_code == 2 and "shrt=0.5" in res.stderr and "shoes" in res.stderr
+
+
+def test_cli_synth_warns_when_the_clothes_blend_into_the_room(walk_clip_path, tmp_path):
+    """A shirt as light as the room loses the torso from the silhouettes: synth says so and names the shirt."""
+    args = ["synth", str(walk_clip_path), "--max-frames", "1", "--fs-stride", "0", "--no-progress",
+            "--out", str(tmp_path / "light"), "--albedo", "shirt=0.6"]
+    res = CliRunner().invoke(app, [*args, "--json"])
+    assert res.exit_code == 0, res.output
+    data = json.loads(res.stdout)
+    assert data["silhouette_iou"]["p50"] < 0.85
+    assert len(data["warnings"]) == 1 and "shirt (0.6" in data["warnings"][0]
+    assert "trousers" not in data["warnings"][0]
+    res = CliRunner().invoke(app, [*args[:-4], "--out", str(tmp_path / "again"), "--albedo", "shirt=0.6"])
+    assert res.exit_code == 0 and "warning:" in res.stderr and "darker --albedo" in res.stderr
 
 
 def test_cli_synth_names_the_options(walk_clip_path, tmp_path):

@@ -10,7 +10,14 @@ import numpy as np
 import typer
 
 from swarmpose.cli.app import app
-from swarmpose.cli.common import console, escape, fail_on_user_error, note_upsampling, print_json
+from swarmpose.cli.common import (
+    console,
+    err_console,
+    escape,
+    fail_on_user_error,
+    note_upsampling,
+    print_json,
+)
 from swarmpose.errors import ConfigError
 
 
@@ -67,8 +74,10 @@ def synth(
     clothing: Annotated[float, typer.Option("--clothing-mm", help="Clothing bulk added to clothed parts, mm.")] = 10.0,
     albedo: Annotated[str, typer.Option(help="Grey reflectance per material over the defaults, material=value[,...] "
                                              "with materials shirt (0.34), trousers (0.29), skin (0.28), hair "
-                                             "(0.20), shoes (0.21); e.g. shirt=0.6,trousers=0.15 for clothes "
-                                             "that show inner edges.")] = "",
+                                             "(0.20), shoes (0.21); e.g. shirt=0.15,skin=0.40 for forearms "
+                                             "that stand out against the shirt. The room is lighter (grey "
+                                             "levels ~116-153): albedos above ~0.43 blend into it and the "
+                                             "silhouettes lose those parts.")] = "",
     noise: Annotated[float, typer.Option("--noise-sigma", help="Sensor noise, grey levels (sd).")] = 2.5,
     max_frames: Annotated[int | None, typer.Option(help="Only the first N frames.")] = None,
     fs_stride: Annotated[int, typer.Option(help="Evaluate the tracker model's f_s every N-th frame (0: never).")] = 5,
@@ -100,6 +109,7 @@ def synth(
                         max_frames=max_frames, fs_stride=fs_stride, measure=not no_measure, overwrite=force,
                         progress=progress)
     data = report.to_dict()
+    data["warnings"] = silhouette_warnings(Path(data["path"]), data["silhouette_iou"], body, scene)
     if json_out:
         print_json(data)
         return
@@ -121,6 +131,35 @@ def synth(
     if m:
         console.print(f"  markers: {m['visible_fraction']:.1%} visible, drop-out {m['dropout_rate']:.3f}, "
                       f"{m['false_per_view']:.2f} false per view")
+    for w in data["warnings"]:
+        err_console.print(f"[bold yellow]warning:[/bold yellow] {escape(w)}", highlight=False)
+
+
+#: Below this median IoU against the exact masks the image-derived silhouettes are poor (the default
+#: synthesis of the shared clips gives 0.93-0.96)
+POOR_SILHOUETTE_IOU = 0.85
+
+
+def silhouette_warnings(seq_dir: Path, iou: dict | None, body, scene) -> list[str]:
+    """Say when the silhouettes found in the images are poor, and which materials blend into the room.
+
+    A material's grey is ``255 * albedo * light`` with ``light`` between ``ambient`` and ``ambient +
+    sky + key`` (:func:`swarmpose.synth.scene.shade_vertices`); it blends in where that range overlaps
+    the backgrounds' 5th-95th percentile.
+    """
+    from swarmpose.io.files import load_npz
+
+    if not iou or not iou.get("n") or iou["p50"] >= POOR_SILHOUETTE_IOU:
+        return []
+    backgrounds = load_npz(seq_dir / "backgrounds.npz", ("backgrounds",))["backgrounds"]
+    lo, hi = np.percentile(backgrounds, [5, 95])
+    dark, bright = scene.ambient, scene.ambient + scene.sky + scene.key
+    blend = [f"{name} ({a:g}: grey {255 * a * dark:.0f}-{255 * a * bright:.0f})"
+             for name, a in body.albedo.items() if 255 * a * dark <= hi and 255 * a * bright >= lo]
+    why = (f"; these materials are as light as the room (grey {lo:.0f}-{hi:.0f}): {', '.join(blend)}; "
+           "choose darker --albedo values" if blend else "")
+    return [f"the silhouettes found in the images match the exact masks poorly (median IoU {iou['p50']:.3f}, "
+            f"below {POOR_SILHOUETTE_IOU}){why}"]
 
 
 def contact_sheet(path: Path, frame: int) -> np.ndarray:
