@@ -426,3 +426,62 @@ def test_sources_that_are_not_sequences_are_named_and_leave_nothing_behind(short
     run_tracker(setup, 0, tmp_path / "cut", stop_after=1)
     with pytest.raises(DataError, match="--resume"):
         load_results(tmp_path / "cut")
+
+
+def test_max_frames_tracks_the_first_frames_only_and_is_part_of_the_settings(short_sequence, tmp_path,
+                                                                            monkeypatch):
+    from typer.testing import CliRunner
+
+    from swarmpose.cli.app import app
+    from swarmpose.errors import ConfigError
+    from swarmpose.report.summary import _reproduce
+
+    monkeypatch.chdir(tmp_path)
+    res = CliRunner().invoke(app, ["track", str(short_sequence), "--fps", "60", "--max-frames", "3",
+                                   "--workers", "1", "--json"])
+    assert res.exit_code == 0, res.output
+    data = json.loads(res.stdout)
+    assert data["frames"] == 3
+    out = tmp_path / "results" / f"{short_sequence.name}-sppso-60fps-3frames"  # not the full run's folder
+    with np.load(out / "run_000" / "joints.npz", allow_pickle=False) as z:
+        assert z["joints"].shape == (3, 15, 3) and z["frame_times"] == pytest.approx([0, 1 / 60, 2 / 60])
+    config = json.loads((out / "config.json").read_text())
+    assert config["max_frames"] == 3 and "--max-frames 3" in _reproduce(config)
+    # resuming with another length is refused, by name
+    with pytest.raises(ConfigError, match="max_frames: 3 there, 5 now"):
+        track_runs(short_sequence, TrackConfig(fps=60.0, max_frames=5), 1, out, resume=True, progress=False)
+    for bad in (0, -2, 2.5):
+        with pytest.raises(ConfigError, match="max_frames"):
+            TrackConfig(max_frames=bad)
+    res = CliRunner().invoke(app, ["track", str(short_sequence), "--max-frames", "0", "--json"])
+    assert res.exit_code == 2
+
+
+def test_a_suite_end_to_end_writes_its_comparison(short_sequence, tmp_path, monkeypatch):
+    """`compare SUITE --max-frames N`: every entry tracked, a table with one row per entry, marked as a
+    quick try; resuming the finished suite gives the same table."""
+    from typer.testing import CliRunner
+
+    from swarmpose.cli.app import app
+    from swarmpose.experiments.run import suite_configs
+
+    monkeypatch.chdir(tmp_path)
+    args = ["compare", "thesis-apf", "--clip", str(short_sequence), "--max-frames", "2", "--runs", "1",
+            "--workers", "1", "--json"]
+    res = CliRunner().invoke(app, args)
+    assert res.exit_code == 0, res.output
+    report = json.loads(res.stdout)
+    out = tmp_path / "results" / "compare" / "thesis-apf-2frames"
+    entries = [e.label for e, _ in suite_configs("thesis-apf")]
+    assert [r["label"] for r in report["rows"]] == entries and report["max_frames"] == 2
+    for row in report["rows"]:
+        cell = json.loads((tmp_path / row["out_dir"] / "summary.json").read_text())
+        assert cell["d_mean_mm"] == row["d_mean_mm"] > row["ik_floor_mm"] and row["runs"] == 1
+        with np.load(tmp_path / row["out_dir"] / "run_000" / "joints.npz", allow_pickle=False) as z:
+            assert len(z["joints"]) == 2
+    assert json.loads((out / "comparison.json").read_text()) == report
+    table = (out / "comparison.md").read_text()
+    assert "first 2 frames" in table and all(f"| {label} |" in table for label in entries)
+    again = CliRunner().invoke(app, [*args, "--resume"])
+    assert again.exit_code == 0, again.output
+    assert [r["d_mean_mm"] for r in json.loads(again.stdout)["rows"]] == [r["d_mean_mm"] for r in report["rows"]]

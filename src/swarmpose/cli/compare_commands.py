@@ -27,6 +27,8 @@ def compare(
     workers: int = typer.Option(None, min=1, help="Parallel local processes (default: one per core)."),
     scheduler: str = typer.Option(None, help="Dask scheduler address: run the jobs on that cluster instead."),
     resume: bool = typer.Option(False, help="Continue interrupted runs."),
+    max_frames: int = typer.Option(None, min=1, help="Only the first N frames of every entry: a quick try of a "
+                                                     "suite (the default --out then ends in -<N>frames)."),
     list_only: bool = typer.Option(False, "--list", help="Only list the suite's entries (every suite's without "
                                                           "SUITE): algorithm, frame rate, variant, fitness, "
                                                           "evaluations per frame, paper; nothing is run."),
@@ -44,12 +46,12 @@ def compare(
         return
     if suite is None:
         raise ConfigError(f"name a suite: {', '.join(SUITES)} (`swarmpose compare --list` shows their entries)")
-    suite_configs(suite, seed=seed, downsample=downsample)  # an unknown suite or a bad setting fails before any clip is synthesised
+    suite_configs(suite, seed=seed, downsample=downsample, max_frames=max_frames)  # an unknown suite or a bad setting fails before any clip is synthesised
     client = connect_scheduler(scheduler) if scheduler else None  # a wrong address fails before any synthesis
     seqs = [resolve_sequence(s, progress=not json_out) for s in (sources or [str(DEFAULT_CLIP)])]
-    out = out or Path("results") / "compare" / suite
+    out = out or Path("results") / "compare" / (suite if max_frames is None else f"{suite}-{max_frames}frames")
     report = run_suite(suite, seqs, out, runs=runs, seed=seed, workers=workers, scheduler=client,
-                       resume=resume, downsample=downsample, progress=not json_out)
+                       resume=resume, downsample=downsample, progress=not json_out, max_frames=max_frames)
     if json_out:
         print_json(report)
         return

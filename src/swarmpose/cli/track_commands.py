@@ -42,6 +42,8 @@ def track(
                               "sec. 5.3.2) or constant-velocity\\[:D]\\[@GROUP+...] (moves on by D x the last "
                               "step, D = 1 by default, only the named parameter groups if given, e.g. "
                               "@root_position; an extension, not in the papers, and worse on the walk)."),
+    max_frames: int = typer.Option(None, min=1, help="Track only the first N frames at --fps (a quick try; the "
+                                                     "default --out then ends in -<N>frames)."),
     workers: int = typer.Option(None, min=1, help="Parallel worker processes (default: one per core, at most --runs)."),
     scheduler: str = typer.Option(None, help="Run on a Dask cluster at this address (dask.distributed)."),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object with the summary."),
@@ -57,7 +59,8 @@ def track(
 
     cfg = TrackConfig(algo=algo, fps=fps, model=model, fitness=fitness, backend=backend,
                       downsample=downsample, seed=seed, fitness_options=fitness_options,
-                      feature_options=features, optim_variant=variant, motion=motion)
+                      feature_options=features, optim_variant=variant, motion=motion,
+                      max_frames=max_frames)
     client = connect_scheduler(scheduler) if scheduler else None  # a wrong address fails before any synthesis
     seq = resolve_sequence(source, progress=not json_out)
     if out is None:
@@ -67,7 +70,7 @@ def track(
             name = dataset_sequence_name(seq)
         else:
             name = seq.name
-        out = Path("results") / f"{name}-{algo}-{fps:g}fps"
+        out = Path("results") / f"{name}-{algo}-{fps:g}fps{'' if max_frames is None else f'-{max_frames}frames'}"
     summary = track_runs(seq, cfg, runs, out, resume=resume, workers=workers, scheduler=client,
                          progress=not json_out)
     gap = summary["frame_interval_s"]

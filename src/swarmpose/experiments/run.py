@@ -36,18 +36,21 @@ def _sequence_name(seq: Any) -> str:
     return dataset_sequence_name(seq) if is_dataset_spec(seq) else Path(str(seq)).name
 
 
-def suite_configs(name: str, *, seed: int = 0, downsample: int = 1) -> list[tuple[Entry, TrackConfig]]:
+def suite_configs(name: str, *, seed: int = 0, downsample: int = 1,
+                  max_frames: int | None = None) -> list[tuple[Entry, TrackConfig]]:
     """Every entry of suite ``name`` with its validated :class:`TrackConfig` (bad settings fail here, before
-    any clip is synthesised or folder written)."""
+    any clip is synthesised or folder written). ``max_frames``: only the first N frames of every entry
+    (a quick try; not the papers' comparisons)."""
     return [(e, TrackConfig(algo=e.algo, fps=e.fps, fitness=e.fitness, seed=seed, downsample=downsample,
-                            optim_variant=e.variant, fitness_options=e.fitness_options)) for e in suite(name)]
+                            optim_variant=e.variant, fitness_options=e.fitness_options, max_frames=max_frames))
+            for e in suite(name)]
 
 
 def run_suite(name: str, sequences: list[Path], out_dir: Path, *, runs: int = 5, seed: int = 0,
               workers: int | None = None, scheduler: Any = None, resume: bool = False,
-              downsample: int = 1, progress: bool = True) -> dict[str, Any]:
+              downsample: int = 1, progress: bool = True, max_frames: int | None = None) -> dict[str, Any]:
     """Run suite ``name`` on the sequences and write ``out_dir/{comparison.json, comparison.md}``."""
-    configs = suite_configs(name, seed=seed, downsample=downsample)
+    configs = suite_configs(name, seed=seed, downsample=downsample, max_frames=max_frames)
     out_dir = Path(out_dir)
     jobs: list[Job] = []
     cells: list[tuple[Entry, Path, Path, Any]] = []
@@ -69,7 +72,8 @@ def run_suite(name: str, sequences: list[Path], out_dir: Path, *, runs: int = 5,
             cell.mkdir(parents=True, exist_ok=True)
             write_config(cell, setup, runs, resume)
             cells.append((e, Path(seq), cell, setup))
-            jobs += [Job(str(seq), asdict(cfg), k, str(cell), resume) for k in range(runs)]
+            jobs += [Job(str(seq), asdict(cfg), k, str(cell), resume, len(setup.frame_indices))
+                     for k in range(runs)]
     except BaseException:
         close_client(scheduler)
         raise
@@ -87,7 +91,7 @@ def run_suite(name: str, sequences: list[Path], out_dir: Path, *, runs: int = 5,
                "out_dir": str(cell)}
         (cell / "summary.json").write_text(json.dumps({**row, "per_run": mine}, indent=1, default=float) + "\n")
         rows.append(row)
-    report = {"suite": name, "runs": runs, "seed": seed, "rows": rows}
+    report = {"suite": name, "runs": runs, "seed": seed, "max_frames": max_frames, "rows": rows}
     (out_dir / "comparison.json").write_text(json.dumps(report, indent=1) + "\n")
     (out_dir / "comparison.md").write_text(comparison_table(report))
     return report
@@ -95,7 +99,9 @@ def run_suite(name: str, sequences: list[Path], out_dir: Path, *, runs: int = 5,
 
 def comparison_table(report: dict[str, Any]) -> str:
     runs = f"{report['runs']} run{'' if report['runs'] == 1 else 's'}"
-    lines = [f"# Suite `{report['suite']}` ({runs} per entry, seed {report['seed']})", "",
+    part = (f"; only the first {report['max_frames']} frames of each entry (--max-frames): a quick try, not the "
+            "papers' comparison" if report.get("max_frames") else "")
+    lines = [f"# Suite `{report['suite']}` ({runs} per entry, seed {report['seed']}{part})", "",
              "| sequence | entry | eval/frame | D_mean mm (± over runs) | worst run D_mean | D_max mm | IK floor mm "
              "| MMTA % | frames/s |",
              "|---|---|---:|---:|---:|---:|---:|---:|---:|"]

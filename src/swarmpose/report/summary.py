@@ -82,7 +82,7 @@ def _table(header: Sequence[str], rows: Sequence[Sequence[str]], align: str | No
 _TRACK_OPTIONS = (("fps", "--fps"), ("runs", "--runs"), ("seed", "--seed"), ("model", "--model"),
                   ("fitness", "--fitness"), ("optim_variant", "--variant"), ("fitness_options", "--fitness-options"),
                   ("feature_options", "--features"), ("motion", "--motion"), ("downsample", "--downsample"),
-                  ("backend", "--backend"))
+                  ("backend", "--backend"), ("max_frames", "--max-frames"))
 _ALWAYS = ("fps", "runs", "seed")
 
 
@@ -183,7 +183,8 @@ def write_summary(
         ("image downsampling", str(cfg.get("downsample", "–"))),
         ("seed", f"{cfg['seed']} (run k draws from SeedSequence([{cfg['seed']}, k]))" if "seed" in cfg else "–"),
         ("runs", f"{len(res.runs)}" + (f" of {cfg['runs']}" if cfg.get("runs") not in (None, len(res.runs)) else "")),
-        ("frames", f"{T} (sequence frames {int(fi[0])}–{int(fi[-1])})" if T else "0"),
+        ("frames", (f"{T} (sequence frames {int(fi[0])}–{int(fi[-1])})" if T else "0")
+         + (f", the first {cfg['max_frames']} at this rate (--max-frames)" if cfg.get("max_frames") else "")),
         ("sequence", f"`{cfg['sequence']}`" if cfg.get("sequence") else "–"),
         ("created", str(cfg.get("created", "–"))),
     ]

@@ -10,9 +10,14 @@ from __future__ import annotations
 import json
 import multiprocessing
 import os
+import queue
+import signal
 import sys
-from collections.abc import Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
+import threading
+import time
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -43,6 +48,7 @@ class Job:
     run: int
     out_dir: str
     resume: bool = False
+    frames: int = 0  # frames the run tracks (for the progress bar; 0 = unknown)
 
 
 def resolve_sequence(source: str | Path, *, cache_dir: Path | None = None, progress: bool = True) -> Path | str:
@@ -77,15 +83,43 @@ def _check_sequence_folder(source: str | Path, p: Path) -> None:
         raise DataError(f"{p} is a results folder (from swarmpose track or compare), not a sequence{where}")
 
 
-def _worker_init(threads: int) -> None:
-    import signal
+#: In a worker process: where its runs report finished frames (set by :func:`_worker_init`).
+_progress_queue: Any = None
 
+
+def _worker_init(threads: int, progress_queue: Any = None, parent_pid: int | None = None) -> None:
     import numba
 
+    global _progress_queue
     # Ctrl-C reaches the whole process group: the parent alone handles it (it stops the workers), so
     # that no worker dies half-way through a pool message and leaves the pool waiting forever
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     numba.set_num_threads(max(1, threads))
+    _progress_queue = progress_queue
+    if parent_pid is not None:
+        threading.Thread(target=_exit_with_parent, args=(parent_pid,), daemon=True).start()
+
+
+def _exit_with_parent(parent_pid: int, poll_s: float = 1.0) -> None:
+    """End this worker when the parent is gone (``kill``, a batch system's SIGTERM, a crash): nothing
+    else would, and an orphan would track on for no one. Its frames so far are saved; --resume goes on."""
+    while True:
+        time.sleep(poll_s)
+        if os.getppid() != parent_pid:
+            os._exit(1)
+
+
+def _run_job_in_worker(index: int, job: Job) -> dict[str, Any]:
+    """:func:`run_job` in a pool worker, reporting ``(index, frames done)`` to the parent's progress bar."""
+    q = _progress_queue
+
+    def report(done: int, _total: int) -> None:
+        try:
+            q.put_nowait((index, done))
+        except Exception:  # noqa: BLE001 - the bar is cosmetic: never let it fail a run
+            pass
+
+    return run_job(job, progress=None if q is None else report)
 
 
 def _stop_pool(pool: ProcessPoolExecutor) -> None:
@@ -102,12 +136,15 @@ def _stop_pool(pool: ProcessPoolExecutor) -> None:
             proc.join(timeout=3)
 
 
-def run_job(job: Job) -> dict[str, Any]:
-    """Execute one job (top-level so that worker processes and Dask can pickle it)."""
+def run_job(job: Job, progress: Callable[[int, int], None] | None = None) -> dict[str, Any]:
+    """Execute one job (top-level so that worker processes and Dask can pickle it).
+
+    ``progress(frames_done, frames)`` is called after every tracked frame.
+    """
     cfg = TrackConfig(**job.config)
     out = Path(job.out_dir)
     setup = prepare_track(job.sequence, cfg, out)
-    res = run_tracker(setup, job.run, out, resume=job.resume)
+    res = run_tracker(setup, job.run, out, resume=job.resume, progress=progress)
     return {"run": job.run, "out_dir": job.out_dir, **res.errors}
 
 
@@ -132,50 +169,128 @@ def close_client(scheduler: Any) -> None:
         scheduler.close()
 
 
+class _JobsBar:
+    """One progress bar over many runs: by frames when every job knows its frame count, else by runs."""
+
+    def __init__(self, jobs: Sequence[Job], enabled: bool, by_frames: bool = True) -> None:
+        from tqdm import tqdm
+
+        self.jobs = jobs
+        self.by_frames = by_frames and bool(jobs) and all(j.frames > 0 for j in jobs)
+        total = sum(j.frames for j in jobs) if self.by_frames else len(jobs)
+        self.done_frames = [0] * len(jobs)
+        self.finished = 0
+        self.bar = tqdm(total=total, desc="tracking" if self.by_frames else "runs",
+                        unit="frame" if self.by_frames else "run", file=sys.stderr, disable=not enabled)
+        if self.by_frames:
+            self._postfix()
+
+    def _postfix(self) -> None:
+        self.bar.set_postfix_str(f"{self.finished}/{len(self.jobs)} runs done", refresh=False)
+
+    def frame(self, index: int, done: int) -> None:
+        self.done_frames[index] = max(self.done_frames[index], done)
+
+    def job_done(self, index: int) -> None:
+        self.finished += 1
+        self.done_frames[index] = self.jobs[index].frames
+        if self.by_frames:
+            self._postfix()
+
+    def refresh(self) -> None:
+        n = sum(self.done_frames) if self.by_frames else self.finished
+        if n != self.bar.n:
+            self.bar.update(n - self.bar.n)
+
+    def close(self) -> None:
+        self.bar.close()
+
+
 def run_jobs(jobs: Sequence[Job], *, workers: int | None = None, scheduler: Any = None,
              progress: bool = True) -> list[dict[str, Any]]:
     """Run jobs in parallel local processes (default), in-process (``workers=1``) or on Dask.
 
     ``scheduler``: a Dask scheduler address, or a client from :func:`connect_scheduler` (closed here).
+    The progress bar counts tracked frames over all runs (runs on Dask: finished runs).
     """
-    from tqdm import tqdm
-
     results: list[dict[str, Any] | None] = [None] * len(jobs)
     if scheduler:
         from dask.distributed import as_completed as dask_completed
 
         client = connect_scheduler(scheduler) if isinstance(scheduler, str) else scheduler
-        bar = tqdm(total=len(jobs), desc="runs", unit="run", file=sys.stderr, disable=not progress)
+        bar = _JobsBar(jobs, progress, by_frames=False)  # remote workers cannot reach a local queue
         with client:
             futures = {client.submit(run_job, j, pure=False): i for i, j in enumerate(jobs)}
             for fut in dask_completed(futures):
                 results[futures[fut]] = fut.result()
-                bar.update(1)
-    else:
-        bar = tqdm(total=len(jobs), desc="runs", unit="run", file=sys.stderr, disable=not progress)
-        cpus = os.cpu_count() or 1
-        workers = min(len(jobs), cpus) if workers is None else max(1, workers)
+                bar.job_done(futures[fut])
+                bar.refresh()
+        bar.close()
+        return [r for r in results if r is not None]
+    bar = _JobsBar(jobs, progress)
+    cpus = os.cpu_count() or 1
+    workers = min(len(jobs), cpus) if workers is None else max(1, workers)
+    try:
         if workers == 1:
             for i, j in enumerate(jobs):
-                results[i] = run_job(j)
-                bar.update(1)
+                results[i] = run_job(j, progress=lambda done, _t, i=i: (bar.frame(i, done), bar.refresh()))
+                bar.job_done(i)
+                bar.refresh()
         else:
-            # "spawn": numba's OpenMP threading layer is not fork-safe once the parent has used it
-            ctx = multiprocessing.get_context("spawn")
-            pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_worker_init,
-                                       initargs=(max(1, cpus // workers),))
-            try:
-                futures = {pool.submit(run_job, j): i for i, j in enumerate(jobs)}
-                for fut in as_completed(futures):
-                    results[futures[fut]] = fut.result()
-                    bar.update(1)
-            except BaseException:  # Ctrl-C or a failed job: do not wait for the queued runs
-                _stop_pool(pool)
-                bar.close()
-                raise
-            pool.shutdown(wait=True)
-    bar.close()
+            _run_in_pool(jobs, workers, cpus, results, bar)
+    finally:
+        bar.close()
     return [r for r in results if r is not None]
+
+
+def _run_in_pool(jobs: Sequence[Job], workers: int, cpus: int, results: list[dict[str, Any] | None],
+                 bar: _JobsBar) -> None:
+    # "spawn": numba's OpenMP threading layer is not fork-safe once the parent has used it
+    ctx = multiprocessing.get_context("spawn")
+    frames_done = ctx.Queue()
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_worker_init,
+                               initargs=(max(1, cpus // workers), frames_done, os.getpid()))
+    try:
+        # the workers start here; a Ctrl-C while they import would print their tracebacks, so they
+        # start with SIGINT ignored (inherited) and keep ignoring it (_worker_init)
+        with _sigint_ignored():
+            futures = {pool.submit(_run_job_in_worker, i, j): i for i, j in enumerate(jobs)}
+        pending = set(futures)
+        while pending:
+            finished, pending = wait(pending, timeout=0.5, return_when=FIRST_COMPLETED)
+            _drain(frames_done, bar)
+            for fut in finished:
+                results[futures[fut]] = fut.result()
+                bar.job_done(futures[fut])
+            bar.refresh()
+        pool.shutdown(wait=True)
+    except BaseException:  # Ctrl-C or a failed job: do not wait for the queued runs
+        _stop_pool(pool)
+        raise
+    finally:
+        frames_done.close()
+
+
+@contextmanager
+def _sigint_ignored() -> Iterator[None]:
+    """Ignore Ctrl-C for a moment (only the main thread may change signal handlers)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def _drain(q: Any, bar: _JobsBar) -> None:
+    while True:
+        try:
+            index, done = q.get_nowait()
+        except queue.Empty:
+            return
+        bar.frame(index, done)
 
 
 def errors_from_summary(summary: dict[str, Any]) -> TrackErrors:
@@ -262,7 +377,8 @@ def track_runs(sequence: str | Path, config: TrackConfig, runs: int, out_dir: Pa
         if fresh and out_dir.is_dir() and not any(out_dir.iterdir()):
             out_dir.rmdir()  # a source or setting that fails leaves no empty results folder behind
         raise
-    jobs = [Job(str(sequence), asdict(config), k, str(out_dir), resume) for k in range(runs)]
+    jobs = [Job(str(sequence), asdict(config), k, str(out_dir), resume, len(setup.frame_indices))
+            for k in range(runs)]
     if progress and scheduler is None and (workers == 1 or runs == 1):
         # in-process: one bar per run, by frames
         from tqdm import tqdm

@@ -73,10 +73,14 @@ class TrackConfig:
     fitness_options: str = ""  # "key=value,..." merged over each stage's options
     feature_options: str = ""  # "edge_threshold=8,..." (swarmpose.features.parse_feature_options)
     motion: str = "zero-velocity"  # or "constant-velocity[:D][@GROUP+...]" (swarmpose.track.motion)
+    max_frames: int | None = None  # only the first N frames at this rate (a quick try); None: all
 
     def __post_init__(self) -> None:
-        if self.fps <= 0:
+        if not self.fps > 0:
             raise ConfigError(f"fps must be positive, got {self.fps}")
+        if self.max_frames is not None and (isinstance(self.max_frames, bool) or int(self.max_frames) != self.max_frames
+                                            or self.max_frames < 1):
+            raise ConfigError(f"max_frames must be a whole number >= 1 (or None for all), got {self.max_frames!r}")
         if self.downsample not in (1, 2, 4, 8):
             raise ConfigError(f"downsample must be 1, 2, 4 or 8, got {self.downsample}")
         if self.fitness not in ("auto", *IMAGE_FITNESS, *MARKER_FITNESS):
@@ -292,7 +296,7 @@ def prepare_track(sequence_path: str | Path, config: TrackConfig, out_dir: Path 
             raise DataError(f"{sequence_path}: the sequence has no ground-truth joints; tracking needs "
                             "them for the start pose and the errors")
         spec = load_spec(config.model)
-        frames = np.asarray(seq.subsample(config.fps), dtype=np.int64)
+        frames = np.asarray(seq.subsample(config.fps), dtype=np.int64)[:config.max_frames]
         if config.fitness_kind in MARKER_FITNESS and seq.markers(int(frames[0])) is None:
             from swarmpose.datasets import is_dataset_spec
 
