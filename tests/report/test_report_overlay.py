@@ -152,7 +152,9 @@ def test_gif_video(fake_results, tmp_path: Path, monkeypatch):
         assert im.n_frames == 3  # frames 0, 6, 12 of the 6 processed
         assert im.info["duration"] == 100  # 20 fps / every 2 = 10 fps
         assert im.size[0] == round((3 * round(180 * CROP_ASPECT) + 2 * 4) * 0.5)  # views cut to the person
-    assert len(boxes) == 3 and boxes[0] is not None and all(b == boxes[0] for b in boxes)  # one box: no jitter
+    assert len(boxes) == 3 and boxes[0] is not None
+    sizes = {(round(x1 - x0, 6), round(y1 - y0, 6)) for frame in boxes for x0, y0, x1, y1 in frame[:1]}
+    assert len(sizes) == 1  # one size per view for the whole video: the zoom does not change
     whole = overlay_video(fake_results[0], tmp_path / "w.gif", every=2, scale=0.5, crop=False)
     with Image.open(whole) as im:
         assert im.size[0] == round((3 * 240 + 2 * 4) * 0.5)
@@ -160,6 +162,30 @@ def test_gif_video(fake_results, tmp_path: Path, monkeypatch):
 
 @pytest.mark.skipif(not any(v for k, v in video_backends().items() if k.startswith("mp4")),
                     reason="no FFmpeg here (imageio-ffmpeg or OpenCV's)")
+def test_video_boxes_follow_the_person_smoothly(fake_results):
+    from swarmpose.report.overlay import follow_boxes
+
+    res = load_results(fake_results[0])
+    r = res.runs[0]
+    cams, _ = _views(res)
+    pts = np.concatenate([r.joints, r.gt_joints], axis=1)
+    pts[2, :, :] = np.nan  # a frame in which no view sees the person takes its neighbours' centre
+    boxes = follow_boxes(cams, pts, window=3)
+    assert len(boxes) == len(pts) and all(len(b) == len(cams) for b in boxes)
+    for c, cam in enumerate(cams):
+        view = np.array([b[c] for b in boxes])
+        assert np.ptp(view[:, 2] - view[:, 0]) < 1e-9 and np.ptp(view[:, 3] - view[:, 1]) < 1e-9
+        assert (view[:, 2] - view[:, 0]) / (view[:, 3] - view[:, 1]) == pytest.approx(CROP_ASPECT)
+        for t in (0, 1, 3, len(pts) - 1):  # the person stays inside the box that follows it
+            uv = cam.project(pts[t])
+            x0, y0, x1, y1 = view[t]
+            assert x0 < uv[:, 0].min() and uv[:, 0].max() < x1 and y0 < uv[:, 1].min() and uv[:, 1].max() < y1
+        assert np.all(np.isfinite(view))
+        # no wider than one frame's box needs: the size is the person's, not the path's
+        assert view[0, 3] - view[0, 1] == pytest.approx(max(b[3] - b[1] for b in (crop_boxes([cam], p)[0] for p in pts
+                                                                                   if np.isfinite(p).all())))
+
+
 def test_mp4_video(fake_results, tmp_path: Path):
     import cv2
 

@@ -161,7 +161,7 @@ def test_cli_synth_warns_when_the_clothes_blend_into_the_room(walk_clip_path, tm
     data = json.loads(res.stdout)
     assert data["silhouette_iou"]["p50"] < 0.85
     assert len(data["warnings"]) == 1 and "shirt (0.6" in data["warnings"][0]
-    assert "trousers" not in data["warnings"][0]
+    assert "trousers" not in data["warnings"][0] and "warning:" in res.stderr  # also beside the progress
     res = CliRunner().invoke(app, [*args[:-4], "--out", str(tmp_path / "again"), "--albedo", "shirt=0.6"])
     assert res.exit_code == 0 and "warning:" in res.stderr and "darker --albedo" in res.stderr
 

@@ -450,9 +450,21 @@ def test_max_frames_tracks_the_first_frames_only_and_is_part_of_the_settings(sho
     # resuming with another length is refused, by name
     with pytest.raises(ConfigError, match="max_frames: 3 there, 5 now"):
         track_runs(short_sequence, TrackConfig(fps=60.0, max_frames=5), 1, out, resume=True, progress=False)
-    for bad in (0, -2, 2.5):
+    with pytest.raises(ConfigError, match="max_frames: 3 there, all frames now"):
+        track_runs(short_sequence, TrackConfig(fps=60.0), 1, out, resume=True, progress=False)
+    for bad in (0, -2, 2.5, "3", float("nan")):
         with pytest.raises(ConfigError, match="max_frames"):
             TrackConfig(max_frames=bad)
+    assert TrackConfig(max_frames=3.0).max_frames == 3 and isinstance(TrackConfig(max_frames=np.int64(3)).max_frames, int)
+    # more than the sequence has: all frames, said so; a single frame has no interval (null, not NaN)
+    res = CliRunner().invoke(app, ["track", str(short_sequence), "--fps", "20", "--max-frames", "50",
+                                   "--workers", "1", "--out", str(tmp_path / "long")])
+    assert res.exit_code == 0 and "has 4 frames at 20 fps" in res.stderr
+    res = CliRunner().invoke(app, ["track", str(short_sequence), "--fps", "20", "--max-frames", "1",
+                                   "--workers", "1", "--out", str(tmp_path / "one"), "--json"])
+    assert res.exit_code == 0, res.output
+    assert json.loads(res.stdout)["frame_interval_s"] == {"mean": None, "min": None, "max": None}
+    assert "NaN" not in (tmp_path / "one" / "summary.json").read_text()
     res = CliRunner().invoke(app, ["track", str(short_sequence), "--max-frames", "0", "--json"])
     assert res.exit_code == 2
 
@@ -478,10 +490,12 @@ def test_a_suite_end_to_end_writes_its_comparison(short_sequence, tmp_path, monk
         cell = json.loads((tmp_path / row["out_dir"] / "summary.json").read_text())
         assert cell["d_mean_mm"] == row["d_mean_mm"] > row["ik_floor_mm"] and row["runs"] == 1
         with np.load(tmp_path / row["out_dir"] / "run_000" / "joints.npz", allow_pickle=False) as z:
-            assert len(z["joints"]) == 2
+            # 2 frames at the lowest rate (20 fps), the same 0.05 s at 60 fps: every entry sees the same motion
+            assert row["frames"] == len(z["joints"]) == {20.0: 2, 60.0: 4}[row["fps"]]
+            assert z["frame_times"][-1] == pytest.approx(0.05)
     assert json.loads((out / "comparison.json").read_text()) == report
     table = (out / "comparison.md").read_text()
-    assert "first 2 frames" in table and all(f"| {label} |" in table for label in entries)
+    assert "first 2 frames at 20 fps (0.05 s" in table and all(f"| {label} |" in table for label in entries)
     again = CliRunner().invoke(app, [*args, "--resume"])
     assert again.exit_code == 0, again.output
     assert [r["d_mean_mm"] for r in json.loads(again.stdout)["rows"]] == [r["d_mean_mm"] for r in report["rows"]]

@@ -75,9 +75,9 @@ def synth(
     albedo: Annotated[str, typer.Option(help="Grey reflectance per material over the defaults, material=value[,...] "
                                              "with materials shirt (0.34), trousers (0.29), skin (0.28), hair "
                                              "(0.20), shoes (0.21); e.g. shirt=0.15,skin=0.40 for forearms "
-                                             "that stand out against the shirt. The room is lighter (grey "
-                                             "levels ~116-153): albedos above ~0.43 blend into it and the "
-                                             "silhouettes lose those parts.")] = "",
+                                             "that stand out against the shirt. Albedos between about 0.5 "
+                                             "and 0.85 are as light as the room (grey levels ~116-153): the "
+                                             "silhouettes lose those parts (synth warns).")] = "",
     noise: Annotated[float, typer.Option("--noise-sigma", help="Sensor noise, grey levels (sd).")] = 2.5,
     max_frames: Annotated[int | None, typer.Option(help="Only the first N frames.")] = None,
     fs_stride: Annotated[int, typer.Option(help="Evaluate the tracker model's f_s every N-th frame (0: never).")] = 5,
@@ -110,6 +110,8 @@ def synth(
                         progress=progress)
     data = report.to_dict()
     data["warnings"] = silhouette_warnings(Path(data["path"]), data["silhouette_iou"], body, scene)
+    for w in data["warnings"]:
+        err_console.print(f"[bold yellow]warning:[/bold yellow] {escape(w)}", highlight=False)
     if json_out:
         print_json(data)
         return
@@ -131,8 +133,6 @@ def synth(
     if m:
         console.print(f"  markers: {m['visible_fraction']:.1%} visible, drop-out {m['dropout_rate']:.3f}, "
                       f"{m['false_per_view']:.2f} false per view")
-    for w in data["warnings"]:
-        err_console.print(f"[bold yellow]warning:[/bold yellow] {escape(w)}", highlight=False)
 
 
 #: Below this median IoU against the exact masks the image-derived silhouettes are poor (the default

@@ -73,8 +73,11 @@ def track(
         out = Path("results") / f"{name}-{algo}-{fps:g}fps{'' if max_frames is None else f'-{max_frames}frames'}"
     summary = track_runs(seq, cfg, runs, out, resume=resume, workers=workers, scheduler=client,
                          progress=not json_out)
+    if max_frames is not None and summary["frames"] < max_frames:
+        err_console.print(f"[yellow]note:[/yellow] the sequence has {summary['frames']} frames at {fps:g} fps: all "
+                          f"were tracked (--max-frames {max_frames} is more)", highlight=False)
     gap = summary["frame_interval_s"]
-    if gap["max"] - gap["min"] > 1e-6:
+    if gap["max"] is not None and gap["max"] - gap["min"] > 1e-6:
         err_console.print(f"[yellow]note:[/yellow] {fps:g} fps does not divide the sequence's frame rate: the "
                           f"tracked frames are {1000 * gap['min']:.0f}-{1000 * gap['max']:.0f} ms apart "
                           f"(mean {1000 * gap['mean']:.1f} ms), the nearest frames to a {fps:g} fps clock",

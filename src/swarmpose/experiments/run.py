@@ -39,11 +39,23 @@ def _sequence_name(seq: Any) -> str:
 def suite_configs(name: str, *, seed: int = 0, downsample: int = 1,
                   max_frames: int | None = None) -> list[tuple[Entry, TrackConfig]]:
     """Every entry of suite ``name`` with its validated :class:`TrackConfig` (bad settings fail here, before
-    any clip is synthesised or folder written). ``max_frames``: only the first N frames of every entry
-    (a quick try; not the papers' comparisons)."""
+    any clip is synthesised or folder written).
+
+    ``max_frames`` (a quick try, not the papers' comparison): the first N frames at the suite's lowest
+    rate, and the same stretch of time at the others (3N - 2 frames at 60 fps beside 20 fps), so
+    that every entry tracks the same motion.
+    """
+    entries = suite(name)
+    slowest = min(e.fps for e in entries)
+
+    def frames(e: Entry) -> int | None:
+        if max_frames is None:
+            return None
+        return int(np.floor((max_frames - 1) * e.fps / slowest + 1e-9)) + 1
+
     return [(e, TrackConfig(algo=e.algo, fps=e.fps, fitness=e.fitness, seed=seed, downsample=downsample,
-                            optim_variant=e.variant, fitness_options=e.fitness_options, max_frames=max_frames))
-            for e in suite(name)]
+                            optim_variant=e.variant, fitness_options=e.fitness_options, max_frames=frames(e)))
+            for e in entries]
 
 
 def run_suite(name: str, sequences: list[Path], out_dir: Path, *, runs: int = 5, seed: int = 0,
@@ -84,6 +96,7 @@ def run_suite(name: str, sequences: list[Path], out_dir: Path, *, runs: int = 5,
         agg = aggregate_runs([errors_from_summary(r) for r in mine])
         row = {"label": e.label, "algo": e.algo, "fps": e.fps, "variant": e.variant, "fitness": setup.config.fitness_kind,
                "fitness_options": e.fitness_options, "sequence": seq.name, "runs": len(mine),
+               "frames": int(len(setup.frame_indices)),
                "evals_per_frame": setup.evals_per_frame, "d_mean_mm": agg["d_mean"], "d_max_mm": agg["d_max"],
                "d_mean_std_over_runs": agg["d_mean_std_over_runs"], "worst_d_mean_mm": agg["worst"]["d_mean"],
                "ik_floor_mm": setup.ik_floor_mm, "mmta": agg["mmta"], "mmtp_mm": agg["mmtp"],
@@ -91,7 +104,8 @@ def run_suite(name: str, sequences: list[Path], out_dir: Path, *, runs: int = 5,
                "out_dir": str(cell)}
         (cell / "summary.json").write_text(json.dumps({**row, "per_run": mine}, indent=1, default=float) + "\n")
         rows.append(row)
-    report = {"suite": name, "runs": runs, "seed": seed, "max_frames": max_frames, "rows": rows}
+    report = {"suite": name, "runs": runs, "seed": seed, "max_frames": max_frames,
+              "lowest_fps": min(e.fps for e, _ in configs), "rows": rows}
     (out_dir / "comparison.json").write_text(json.dumps(report, indent=1) + "\n")
     (out_dir / "comparison.md").write_text(comparison_table(report))
     return report
@@ -99,8 +113,12 @@ def run_suite(name: str, sequences: list[Path], out_dir: Path, *, runs: int = 5,
 
 def comparison_table(report: dict[str, Any]) -> str:
     runs = f"{report['runs']} run{'' if report['runs'] == 1 else 's'}"
-    part = (f"; only the first {report['max_frames']} frames of each entry (--max-frames): a quick try, not the "
-            "papers' comparison" if report.get("max_frames") else "")
+    part = ""
+    if report.get("max_frames"):
+        n, slowest = report["max_frames"], report.get("lowest_fps")
+        span = f" ({(n - 1) / slowest:.2f} s; the same stretch at the other rates)" if slowest else ""
+        part = (f"; only the first {n} frames at {slowest:g} fps{span}, --max-frames: a quick try, not the papers' "
+                "comparison")
     lines = [f"# Suite `{report['suite']}` ({runs} per entry, seed {report['seed']}{part})", "",
              "| sequence | entry | eval/frame | D_mean mm (± over runs) | worst run D_mean | D_max mm | IK floor mm "
              "| MMTA % | frames/s |",

@@ -4,11 +4,12 @@ Every view of a frame is drawn as a tile: the camera image in grey, each truncat
 tracked pose filled semi-transparently and outlined (left limbs blue, right limbs vermillion, torso
 and head green; far cones first), and the ground-truth 15-joint skeleton in yellow with a dark
 border. Runs tracked on 2D markers also show the frame's detections (sky-blue rings, false ones
-included: what the tracker was given). The tiles sit side by side (at most ``columns`` per row) under a title line with the frame
+included: what the tracker was given; in a cut-out view, those inside it). The tiles sit side by side (at most ``columns`` per row) under a title line with the frame
 index, its time and the 3D error D, above a legend (thesis Fig. 6.3/6.6 show such views). The
 report cuts each view to the person (:func:`crop_boxes`: the estimated and true joints with a
-margin, one box per view for a whole video so that it does not jitter) and draws the cut-outs at the
-views' height, so the body is large enough to judge; ``crop=False`` keeps the whole views.
+margin; in a video :func:`follow_boxes`, one size per view moving smoothly with the person) and draws
+the cut-outs at the views' height, so the body is large enough to judge; ``crop=False`` keeps the
+whole views.
 
 Cone outlines come from :func:`swarmpose.render.project_cones` (the same geometry the fitness
 uses: exact occluding contours of the truncated cones, with lens distortion).
@@ -28,7 +29,7 @@ from swarmpose.joints import BONES15
 from swarmpose.report._style import DETECTION_RGB, GT_RGB, SIDE_RGB, bgr
 from swarmpose.report.results import Results, as_results
 
-__all__ = ["render_overlay", "overlays", "overlay_video", "choose_frames", "crop_boxes"]
+__all__ = ["render_overlay", "overlays", "overlay_video", "choose_frames", "crop_boxes", "follow_boxes"]
 
 _FONT = cv2.FONT_HERSHEY_SIMPLEX
 _SHIFT = 4  # sub-pixel bits for cv2 drawing
@@ -103,6 +104,34 @@ def _legend(width: int, height: int, scale: float, detections: bool = False) -> 
 CROP_ASPECT = 0.75
 
 
+def _person_box(cam, pts: np.ndarray, margin: float, aspect: float,
+                min_height_frac: float) -> tuple[float, float, float, float] | None:
+    """:func:`crop_boxes`'s box for one view, or None when the view sees none of the points."""
+    uv = np.zeros((0, 2))
+    if len(pts):
+        uv, z = cam.project_with_depth(pts)
+        uv = uv[(z > 1.0) & np.all(np.isfinite(uv), axis=1) & np.all(np.abs(uv) < 1e5, axis=1)]
+    if len(uv) == 0:
+        return None
+    (x0, y0), (x1, y1) = uv.min(axis=0), uv.max(axis=0)
+    grow = margin * max(y1 - y0, (x1 - x0) / aspect, 1.0)
+    return _with_aspect(x0 - grow, y0 - grow, x1 + grow, y1 + grow, aspect, min_height_frac * cam.height)
+
+
+def _with_aspect(x0: float, y0: float, x1: float, y1: float, aspect: float,
+                 min_height: float = 0.0) -> tuple[float, float, float, float]:
+    """The box with the same centre grown to ``aspect`` (width / height) and ``min_height``."""
+    cx, cy = 0.5 * (x0 + x1), 0.5 * (y0 + y1)
+    h = max(y1 - y0, (x1 - x0) / aspect, min_height)
+    w = aspect * h
+    return (cx - w / 2, cy - h / 2, cx + w / 2, cy + h / 2)
+
+
+def _points(points: np.ndarray) -> np.ndarray:
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    return pts[np.all(np.isfinite(pts), axis=1)]
+
+
 def crop_boxes(cameras: Sequence, points: np.ndarray, *, margin: float = 0.25, aspect: float = CROP_ASPECT,
                min_height_frac: float = 0.3) -> list[tuple[float, float, float, float]]:
     """Per view, a box ``(x0, y0, x1, y1)`` in pixels around the projections of ``points``.
@@ -117,28 +146,52 @@ def crop_boxes(cameras: Sequence, points: np.ndarray, *, margin: float = 0.25, a
     ----------
     cameras : sequence of Camera
     points : numpy.ndarray, shape (..., 3)
-        World points, mm (e.g. the estimated and true joints of one frame, or of a whole run).
+        World points, mm (e.g. the estimated and true joints of one frame).
     """
-    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    pts = pts[np.all(np.isfinite(pts), axis=1)]
+    pts = _points(points)
     boxes = []
     for cam in cameras:
-        W, H = cam.width, cam.height
-        uv = np.zeros((0, 2))
-        if len(pts):
-            uv, z = cam.project_with_depth(pts)
-            uv = uv[(z > 1.0) & np.all(np.isfinite(uv), axis=1) & np.all(np.abs(uv) < 1e5, axis=1)]
-        if len(uv) == 0:
-            x0, y0, x1, y1 = 0.0, 0.0, float(W), float(H)
-        else:
-            (x0, y0), (x1, y1) = uv.min(axis=0), uv.max(axis=0)
-            grow = margin * max(y1 - y0, (x1 - x0) / aspect, 1.0)
-            x0, y0, x1, y1 = x0 - grow, y0 - grow, x1 + grow, y1 + grow
-        cx, cy = 0.5 * (x0 + x1), 0.5 * (y0 + y1)
-        h = max(y1 - y0, (x1 - x0) / aspect, min_height_frac * H)
-        w = aspect * h
-        boxes.append((cx - w / 2, cy - h / 2, cx + w / 2, cy + h / 2))
+        box = _person_box(cam, pts, margin, aspect, min_height_frac)
+        boxes.append(box if box is not None else _with_aspect(0.0, 0.0, float(cam.width), float(cam.height), aspect))
     return boxes
+
+
+def follow_boxes(cameras: Sequence, points: np.ndarray, *, window: int = 1, margin: float = 0.25,
+                 aspect: float = CROP_ASPECT, min_height_frac: float = 0.3) -> list[list[tuple[float, ...]]]:
+    """Boxes that follow the person through a video: ``boxes[t][c]`` for frame ``t`` and view ``c``.
+
+    Each view keeps one size for the whole video (the largest of its :func:`crop_boxes` boxes, so the
+    zoom does not change) and moves its centre with the person, averaged over ``window`` frames so
+    that it does not jitter. Frames where a view sees no point take the centre of their neighbours.
+
+    Parameters
+    ----------
+    cameras : sequence of Camera
+    points : numpy.ndarray, shape (T, P, 3)
+        World points per frame, mm (estimated and true joints).
+    window : int, default 1
+        Frames of the centred moving average of the box centres.
+    """
+    from scipy.ndimage import uniform_filter1d
+
+    T = len(points)
+    per_view = []
+    for cam in cameras:
+        boxes = [_person_box(cam, _points(points[t]), margin, aspect, min_height_frac) for t in range(T)]
+        seen = np.array([b is not None for b in boxes])
+        if not seen.any():
+            whole = _with_aspect(0.0, 0.0, float(cam.width), float(cam.height), aspect)
+            per_view.append([whole] * T)
+            continue
+        b = np.array([bx for bx in boxes if bx is not None])
+        h = float((b[:, 3] - b[:, 1]).max())
+        w = aspect * h
+        t = np.arange(T)
+        centres = np.stack([np.interp(t, t[seen], 0.5 * (b[:, 0] + b[:, 2])),
+                            np.interp(t, t[seen], 0.5 * (b[:, 1] + b[:, 3]))], axis=1)
+        centres = uniform_filter1d(centres, size=max(1, int(window)), axis=0, mode="nearest")
+        per_view.append([(cx - w / 2, cy - h / 2, cx + w / 2, cy + h / 2) for cx, cy in centres])
+    return [[view[t] for view in per_view] for t in range(T)]
 
 
 def _cut(img: np.ndarray, box: tuple[float, float, float, float], size: tuple[int, int]) -> np.ndarray:
@@ -532,8 +585,8 @@ def overlay_video(
     alpha : float
         Cone fill opacity.
     crop : bool, default True
-        Cut each view to the region the person moves through in the whole run (one box per view, so
-        the picture does not jitter); False: whole views.
+        Cut each view to the person with a box of one size per view that follows the person
+        smoothly (:func:`follow_boxes`, half a second of averaging); False: whole views.
 
     Returns
     -------
@@ -566,13 +619,17 @@ def overlay_video(
     gif_frames: list = []
     mp4 = _Mp4Writer(out, rate) if fmt == "mp4" else None
     try:
-        shown = range(0, len(r.frame_indices), every)
-        boxes = crop_boxes(src.cameras, np.concatenate([r.joints[shown], r.gt_joints[shown]])) if crop else None
-        for i in shown:
+        shown = np.arange(0, len(r.frame_indices), every)
+        boxes = None
+        if crop:  # half a second of smoothing at the playback rate
+            window = max(1, round(0.5 * res.fps / every)) if res.fps else 1
+            boxes = follow_boxes(src.cameras, np.concatenate([r.joints[shown], r.gt_joints[shown]], axis=1),
+                                 window=window)
+        for n, i in enumerate(shown):
             k = int(r.frame_indices[i])
             rgb = render_overlay(model, r.params[i], src.cameras, src.images(k), r.gt_joints[i],
-                                 title=_title(res, run, i), scale=scale, alpha=alpha,
-                                 detections=src.detections(k), crop=boxes)
+                                 title=_title(res, run, int(i)), scale=scale, alpha=alpha,
+                                 detections=src.detections(k), crop=None if boxes is None else boxes[n])
             if mp4 is not None:
                 mp4.append(rgb)
             else:

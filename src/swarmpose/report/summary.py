@@ -184,7 +184,8 @@ def write_summary(
         ("seed", f"{cfg['seed']} (run k draws from SeedSequence([{cfg['seed']}, k]))" if "seed" in cfg else "–"),
         ("runs", f"{len(res.runs)}" + (f" of {cfg['runs']}" if cfg.get("runs") not in (None, len(res.runs)) else "")),
         ("frames", (f"{T} (sequence frames {int(fi[0])}–{int(fi[-1])})" if T else "0")
-         + (f", the first {cfg['max_frames']} at this rate (--max-frames)" if cfg.get("max_frames") else "")),
+         + (f", the first {cfg['max_frames']} at this rate (--max-frames)"
+            if cfg.get("max_frames") and cfg["max_frames"] <= T else "")),
         ("sequence", f"`{cfg['sequence']}`" if cfg.get("sequence") else "–"),
         ("created", str(cfg.get("created", "–"))),
     ]

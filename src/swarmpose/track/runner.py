@@ -169,6 +169,21 @@ def close_client(scheduler: Any) -> None:
         scheduler.close()
 
 
+def _frames_saved(job: Job) -> int:
+    """Frames of ``job`` tracked by an earlier session (``--resume``): all for a finished run, else the
+    count in its ``progress.npz`` (0 when there is none or it cannot be read; the run reports itself)."""
+    if not job.resume:
+        return 0
+    run_dir = Path(job.out_dir) / f"run_{job.run:03d}"
+    if (run_dir / "summary.json").is_file() and (run_dir / "joints.npz").is_file():
+        return job.frames
+    try:
+        with np.load(run_dir / "progress.npz", allow_pickle=False) as z:
+            return max(0, min(int(z["done"]), job.frames))
+    except Exception:  # noqa: BLE001 - missing or damaged: the tracker reports it; the bar counts from 0
+        return 0
+
+
 class _JobsBar:
     """One progress bar over many runs: by frames when every job knows its frame count, else by runs."""
 
@@ -178,9 +193,10 @@ class _JobsBar:
         self.jobs = jobs
         self.by_frames = by_frames and bool(jobs) and all(j.frames > 0 for j in jobs)
         total = sum(j.frames for j in jobs) if self.by_frames else len(jobs)
-        self.done_frames = [0] * len(jobs)
+        # frames a resumed run saved before: counted from the start, so the rate and ETA are this session's
+        self.done_frames = [_frames_saved(j) if self.by_frames else 0 for j in jobs]
         self.finished = 0
-        self.bar = tqdm(total=total, desc="tracking" if self.by_frames else "runs",
+        self.bar = tqdm(total=total, initial=sum(self.done_frames), desc="tracking" if self.by_frames else "runs",
                         unit="frame" if self.by_frames else "run", file=sys.stderr, disable=not enabled)
         if self.by_frames:
             self._postfix()
@@ -322,7 +338,10 @@ def check_results_folder(out_dir: Path, sequence: str | Path, config: TrackConfi
     old = read_json_object(cfg_file)
     new = asdict(config)
     defaults = asdict(TrackConfig())  # a folder written before a setting existed used its default
-    differ = [f"{k}: {old.get(k, defaults[k])!r} there, {v!r} now" for k, v in new.items()
+    def shown(key: str, value: Any) -> str:
+        return "all frames" if key == "max_frames" and value is None else repr(value)
+
+    differ = [f"{k}: {shown(k, old.get(k, defaults[k]))} there, {shown(k, v)} now" for k, v in new.items()
               if old.get(k, defaults[k]) != v]
     # "auto" may resolve differently in another version (AAPSO: markers -> reprojection)
     if old.get("fitness_kind", config.fitness_kind) != config.fitness_kind:
@@ -351,12 +370,12 @@ def check_results_folder(out_dir: Path, sequence: str | Path, config: TrackConfi
                           "or more)")
 
 
-def _intervals(frame_times: np.ndarray) -> dict[str, float]:
+def _intervals(frame_times: np.ndarray) -> dict[str, float | None]:
     """Mean, shortest and longest time between tracked frames: a rate that does not divide the
     sequence's (25 fps from 60) picks the nearest frames, so the spacing alternates (33 / 50 ms)."""
     d = np.diff(np.asarray(frame_times, dtype=np.float64))
-    if d.size == 0:
-        return {"mean": float("nan"), "min": float("nan"), "max": float("nan")}
+    if d.size == 0:  # one frame: no interval (null in the JSON)
+        return {"mean": None, "min": None, "max": None}
     return {"mean": float(d.mean()), "min": float(d.min()), "max": float(d.max())}
 
 

@@ -78,9 +78,11 @@ class TrackConfig:
     def __post_init__(self) -> None:
         if not self.fps > 0:
             raise ConfigError(f"fps must be positive, got {self.fps}")
-        if self.max_frames is not None and (isinstance(self.max_frames, bool) or int(self.max_frames) != self.max_frames
-                                            or self.max_frames < 1):
-            raise ConfigError(f"max_frames must be a whole number >= 1 (or None for all), got {self.max_frames!r}")
+        if self.max_frames is not None:
+            n = self.max_frames
+            if isinstance(n, bool) or not isinstance(n, int | float | np.integer) or not n >= 1 or int(n) != n:
+                raise ConfigError(f"max_frames must be a whole number >= 1 (or None for all), got {n!r}")
+            object.__setattr__(self, "max_frames", int(n))
         if self.downsample not in (1, 2, 4, 8):
             raise ConfigError(f"downsample must be 1, 2, 4 or 8, got {self.downsample}")
         if self.fitness not in ("auto", *IMAGE_FITNESS, *MARKER_FITNESS):
