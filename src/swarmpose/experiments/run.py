@@ -115,10 +115,9 @@ def comparison_table(report: dict[str, Any]) -> str:
     runs = f"{report['runs']} run{'' if report['runs'] == 1 else 's'}"
     part = ""
     if report.get("max_frames"):
-        n, slowest = report["max_frames"], report.get("lowest_fps")
-        span = f" ({(n - 1) / slowest:.2f} s; the same stretch at the other rates)" if slowest else ""
-        part = (f"; only the first {n} frames at {slowest:g} fps{span}, --max-frames: a quick try, not the papers' "
-                "comparison")
+        n, slowest = report["max_frames"], report["lowest_fps"]
+        part = (f"; only the first {n} frames at {slowest:g} fps ({(n - 1) / slowest:.2f} s; the same stretch at "
+                "the other rates), --max-frames: a quick try, not the papers' comparison")
     lines = [f"# Suite `{report['suite']}` ({runs} per entry, seed {report['seed']}{part})", "",
              "| sequence | entry | eval/frame | D_mean mm (± over runs) | worst run D_mean | D_max mm | IK floor mm "
              "| MMTA % | frames/s |",

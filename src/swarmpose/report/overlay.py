@@ -4,9 +4,11 @@ Every view of a frame is drawn as a tile: the camera image in grey, each truncat
 tracked pose filled semi-transparently and outlined (left limbs blue, right limbs vermillion, torso
 and head green; far cones first), and the ground-truth 15-joint skeleton in yellow with a dark
 border. Runs tracked on 2D markers also show the frame's detections (sky-blue rings, false ones
-included: what the tracker was given; in a cut-out view, those inside it). The tiles sit side by side (at most ``columns`` per row) under a title line with the frame
-index, its time and the 3D error D, above a legend (thesis Fig. 6.3/6.6 show such views). The
-report cuts each view to the person (:func:`crop_boxes`: the estimated and true joints with a
+included: what the tracker was given; in a cut-out view, those inside it). The tiles sit side by
+side (at most ``columns`` per row) under a title line with the frame index, its time and the 3D
+error D, above a legend (thesis Fig. 6.3/6.6 show such views).
+
+The report cuts each view to the person (:func:`crop_boxes`: the estimated and true joints with a
 margin; in a video :func:`follow_boxes`, one size per view moving smoothly with the person) and draws
 the cut-outs at the views' height, so the body is large enough to judge; ``crop=False`` keeps the
 whole views.
@@ -40,6 +42,12 @@ def _fixed(pts: np.ndarray) -> np.ndarray:
     return np.round(np.asarray(pts, dtype=np.float64) * _ONE).astype(np.int32)
 
 
+def _drawable(uv: np.ndarray, z: np.ndarray | None = None) -> np.ndarray:
+    """Which image points can be drawn: finite, not absurdly far off, and (given depths) in front."""
+    ok = np.all(np.isfinite(uv), axis=1) & np.all(np.abs(uv) < 1e5, axis=1)
+    return ok if z is None else ok & (z > 1.0)
+
+
 def _label(img: np.ndarray, text: str, org: tuple[int, int], scale: float = 0.55) -> None:
     (w, h), base = cv2.getTextSize(text, _FONT, scale, 1)
     x, y = org
@@ -63,7 +71,7 @@ def _draw_view(tile: np.ndarray, polys: list[np.ndarray], depths: list[float], s
         cv2.polylines(tile, pts, True, colour, line, cv2.LINE_AA, _SHIFT)
     if detections is not None:
         det = np.asarray(detections, dtype=np.float64).reshape(-1, 2)
-        for uv in det[np.all(np.isfinite(det), axis=1) & np.all(np.abs(det) < 1e5, axis=1)]:
+        for uv in det[_drawable(det)]:
             c = tuple(_fixed(uv))
             cv2.circle(tile, c, (line + 4) * _ONE, (20, 20, 20), line + 2, cv2.LINE_AA, _SHIFT)
             cv2.circle(tile, c, (line + 4) * _ONE, bgr(DETECTION_RGB), line, cv2.LINE_AA, _SHIFT)
@@ -110,7 +118,7 @@ def _person_box(cam, pts: np.ndarray, margin: float, aspect: float,
     uv = np.zeros((0, 2))
     if len(pts):
         uv, z = cam.project_with_depth(pts)
-        uv = uv[(z > 1.0) & np.all(np.isfinite(uv), axis=1) & np.all(np.abs(uv) < 1e5, axis=1)]
+        uv = uv[_drawable(uv, z)]
     if len(uv) == 0:
         return None
     (x0, y0), (x1, y1) = uv.min(axis=0), uv.max(axis=0)
@@ -125,6 +133,10 @@ def _with_aspect(x0: float, y0: float, x1: float, y1: float, aspect: float,
     h = max(y1 - y0, (x1 - x0) / aspect, min_height)
     w = aspect * h
     return (cx - w / 2, cy - h / 2, cx + w / 2, cy + h / 2)
+
+
+def _whole_view(cam, aspect: float) -> tuple[float, float, float, float]:
+    return _with_aspect(0.0, 0.0, float(cam.width), float(cam.height), aspect)
 
 
 def _points(points: np.ndarray) -> np.ndarray:
@@ -152,7 +164,7 @@ def crop_boxes(cameras: Sequence, points: np.ndarray, *, margin: float = 0.25, a
     boxes = []
     for cam in cameras:
         box = _person_box(cam, pts, margin, aspect, min_height_frac)
-        boxes.append(box if box is not None else _with_aspect(0.0, 0.0, float(cam.width), float(cam.height), aspect))
+        boxes.append(box if box is not None else _whole_view(cam, aspect))
     return boxes
 
 
@@ -180,8 +192,7 @@ def follow_boxes(cameras: Sequence, points: np.ndarray, *, window: int = 1, marg
         boxes = [_person_box(cam, _points(points[t]), margin, aspect, min_height_frac) for t in range(T)]
         seen = np.array([b is not None for b in boxes])
         if not seen.any():
-            whole = _with_aspect(0.0, 0.0, float(cam.width), float(cam.height), aspect)
-            per_view.append([whole] * T)
+            per_view.append([_whole_view(cam, aspect)] * T)
             continue
         b = np.array([bx for bx in boxes if bx is not None])
         h = float((b[:, 3] - b[:, 1]).max())
@@ -194,14 +205,17 @@ def follow_boxes(cameras: Sequence, points: np.ndarray, *, window: int = 1, marg
     return [[view[t] for view in per_view] for t in range(T)]
 
 
-def _cut(img: np.ndarray, box: tuple[float, float, float, float], size: tuple[int, int]) -> np.ndarray:
-    """The part of ``img`` inside ``box`` resized to ``size`` = (width, height); dark beyond the image."""
+def _cut(img: np.ndarray, box: tuple[float, float, float, float],
+         size: tuple[int, int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The part of ``img`` inside ``box`` resized to ``size`` = (width, height), dark beyond the image;
+    with the map of image pixels into it, ``uv -> (uv - origin) * zoom``, as ``(cut, origin, zoom)``."""
     x0, y0, x1, y1 = box
     tw, th = size
-    sx, sy = tw / (x1 - x0), th / (y1 - y0)
-    M = np.array([[sx, 0.0, -x0 * sx], [0.0, sy, -y0 * sy]])
-    interp = cv2.INTER_AREA if sx < 1 else cv2.INTER_LINEAR
-    return cv2.warpAffine(img, M, (tw, th), flags=interp, borderMode=cv2.BORDER_CONSTANT, borderValue=(30, 30, 30))
+    origin, zoom = np.array([x0, y0]), np.array([tw / (x1 - x0), th / (y1 - y0)])
+    M = np.array([[zoom[0], 0.0, -x0 * zoom[0]], [0.0, zoom[1], -y0 * zoom[1]]])
+    interp = cv2.INTER_AREA if zoom[0] < 1 else cv2.INTER_LINEAR
+    cut = cv2.warpAffine(img, M, (tw, th), flags=interp, borderMode=cv2.BORDER_CONSTANT, borderValue=(30, 30, 30))
+    return cut, origin, zoom
 
 
 def render_overlay(
@@ -287,9 +301,7 @@ def render_overlay(
         # drawn after the cut, in the cut-out's pixels, so that lines stay sharp
         origin, zoom = np.zeros(2), np.ones(2)
         if crop is not None:
-            x0, y0, x1, y1 = crop[c]
-            tile = _cut(tile, crop[c], (TW, TH))
-            origin, zoom = np.array([x0, y0]), np.array([TW / (x1 - x0), TH / (y1 - y0)])
+            tile, origin, zoom = _cut(tile, crop[c], (TW, TH))
 
         def to_tile(uv: np.ndarray, origin=origin, zoom=zoom) -> np.ndarray:
             return (np.asarray(uv, dtype=np.float64) - origin) * zoom
@@ -307,7 +319,7 @@ def render_overlay(
         gt_uv = gt_ok = None
         if gt_joints is not None:
             uv, z = cam.project_with_depth(np.asarray(gt_joints, dtype=np.float64))
-            gt_ok = (z > 1.0) & np.all(np.isfinite(uv), axis=1) & np.all(np.abs(uv) < 1e5, axis=1)
+            gt_ok = _drawable(uv, z)
             gt_uv = to_tile(np.where(gt_ok[:, None], uv, 0.0))
         det = None
         if detections is not None:

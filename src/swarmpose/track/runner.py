@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from swarmpose.errors import ConfigError, DataError, FormatError
-from swarmpose.io.files import read_json_object
+from swarmpose.io.files import load_npz, read_json_object
 from swarmpose.metrics import TrackErrors, aggregate_runs
 from swarmpose.track.tracker import (
     TrackConfig,
@@ -178,10 +178,10 @@ def _frames_saved(job: Job) -> int:
     if (run_dir / "summary.json").is_file() and (run_dir / "joints.npz").is_file():
         return job.frames
     try:
-        with np.load(run_dir / "progress.npz", allow_pickle=False) as z:
-            return max(0, min(int(z["done"]), job.frames))
-    except Exception:  # noqa: BLE001 - missing or damaged: the tracker reports it; the bar counts from 0
+        done = int(load_npz(run_dir / "progress.npz", ("done",))["done"])
+    except (FormatError, OSError, ValueError, TypeError):  # missing or damaged: the run itself reports it
         return 0
+    return max(0, min(done, job.frames))
 
 
 class _JobsBar:
@@ -398,19 +398,7 @@ def track_runs(sequence: str | Path, config: TrackConfig, runs: int, out_dir: Pa
         raise
     jobs = [Job(str(sequence), asdict(config), k, str(out_dir), resume, len(setup.frame_indices))
             for k in range(runs)]
-    if progress and scheduler is None and (workers == 1 or runs == 1):
-        # in-process: one bar per run, by frames
-        from tqdm import tqdm
-
-        per_run = []
-        for job in jobs:
-            with tqdm(total=len(setup.frame_indices), desc=f"{config.algo} run {job.run}", unit="frame",
-                      file=sys.stderr) as bar:
-                res = run_tracker(setup, job.run, out_dir, resume=resume,
-                                  progress=lambda k, T, bar=bar: bar.update(k - bar.n))
-            per_run.append({"run": job.run, "out_dir": str(out_dir), **res.errors})
-    else:
-        per_run = run_jobs(jobs, workers=workers, scheduler=scheduler, progress=progress)
+    per_run = run_jobs(jobs, workers=workers, scheduler=scheduler, progress=progress)
     agg = aggregate_runs([errors_from_summary(r) for r in per_run])
     summary = {
         "algo": config.algo,
