@@ -452,7 +452,7 @@ def test_max_frames_tracks_the_first_frames_only_and_is_part_of_the_settings(sho
         track_runs(short_sequence, TrackConfig(fps=60.0, max_frames=5), 1, out, resume=True, progress=False)
     with pytest.raises(ConfigError, match="max_frames: 3 there, all frames now"):
         track_runs(short_sequence, TrackConfig(fps=60.0), 1, out, resume=True, progress=False)
-    for bad in (0, -2, 2.5, "3", float("nan")):
+    for bad in (0, -2, 2.5, "3", float("nan"), float("inf")):
         with pytest.raises(ConfigError, match="max_frames"):
             TrackConfig(max_frames=bad)
     assert TrackConfig(max_frames=3.0).max_frames == 3 and isinstance(TrackConfig(max_frames=np.int64(3)).max_frames, int)

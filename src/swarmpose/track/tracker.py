@@ -80,7 +80,8 @@ class TrackConfig:
             raise ConfigError(f"fps must be positive, got {self.fps}")
         if self.max_frames is not None:
             n = self.max_frames
-            if isinstance(n, bool) or not isinstance(n, int | float | np.integer) or not n >= 1 or int(n) != n:
+            if (isinstance(n, bool) or not isinstance(n, int | float | np.integer) or not np.isfinite(n) or n < 1
+                    or int(n) != n):
                 raise ConfigError(f"max_frames must be a whole number >= 1 (or None for all), got {n!r}")
             object.__setattr__(self, "max_frames", int(n))
         if self.downsample not in (1, 2, 4, 8):
