@@ -26,9 +26,9 @@ def test_report_json(fake_results, tmp_path: Path):
     out = CliRunner().invoke(app, ["report", str(res), "--frames", "1", "--json"])
     assert out.exit_code == 0, out.output
     data = json.loads(out.stdout)
-    assert set(data) == {"summary", "figures", "overlays", "video"}
+    assert set(data) == {"summary", "html", "figures", "overlays", "video"}
     assert data["video"] is None and len(data["overlays"]) == 1 and len(data["figures"]) == 2
-    assert all(Path(p).is_file() for p in [data["summary"], *data["figures"], *data["overlays"]])
+    assert all(Path(p).is_file() for p in [data["summary"], data["html"], *data["figures"], *data["overlays"]])
 
 
 def test_report_text_and_errors(fake_results, tmp_path: Path):

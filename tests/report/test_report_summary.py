@@ -30,11 +30,16 @@ def test_make_report_writes_everything(results_copy: Path):
         assert p.is_file() and p.stat().st_size > 1000, p
     assert paths.notes == []
     d = paths.to_dict()
-    assert set(d) == {"summary", "figures", "overlays", "video"}
+    assert set(d) == {"summary", "html", "figures", "overlays", "video"}
     md = paths.summary.read_text()
     for p in [*paths.figures, *paths.overlays]:
         assert f"]({p.relative_to(rep).as_posix()})" in md
     assert "](overlay_run000.gif)" in md
+    # the page: every figure and overlay embedded, the video linked beside it
+    assert paths.html == rep / "summary.html"
+    page = paths.html.read_text()
+    assert page.count('<img src="data:image/') == len(paths.figures) + len(paths.overlays)
+    assert 'href="overlay_run000.gif"' in page and "<h2>Error per joint</h2>" in page
 
 
 def test_summary_has_the_numbers(results_copy: Path):

@@ -496,6 +496,8 @@ def test_a_suite_end_to_end_writes_its_comparison(short_sequence, tmp_path, monk
     assert json.loads((out / "comparison.json").read_text()) == report
     table = (out / "comparison.md").read_text()
     assert "first 2 frames at 20 fps (0.05 s" in table and all(f"| {label} |" in table for label in entries)
+    assert "](comparison_over_time.png)" in table and "](comparison_d_mean.png)" in table
+    assert (out / "comparison.html").read_text().count("data:image/png;base64,") == 2
     again = CliRunner().invoke(app, [*args, "--resume"])
     assert again.exit_code == 0, again.output
     assert [r["d_mean_mm"] for r in json.loads(again.stdout)["rows"]] == [r["d_mean_mm"] for r in report["rows"]]

@@ -34,7 +34,13 @@ def compare(
                                                           "evaluations per frame, paper; nothing is run."),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object with the table's rows."),
 ) -> None:
-    """Run an experiment suite (entries × clips × runs in parallel) and write a comparison table."""
+    """Run an experiment suite (entries × clips × runs in parallel) and write a comparison report.
+
+    OUT (default results/compare/SUITE) gets comparison.json, comparison.md (the table, the mean error
+    over time of every entry and every run's D_mean as figures), comparison.html (the same as one
+    self-contained page) and one `swarmpose track` results folder per clip and entry
+    (OUT/<clip>/<entry>/, each open to `swarmpose report`). `swarmpose report OUT` redraws the figures.
+    """
     from swarmpose.errors import ConfigError
     from swarmpose.experiments.run import run_suite, suite_configs
     from swarmpose.experiments.suites import SUITES
@@ -55,8 +61,12 @@ def compare(
     if json_out:
         print_json(report)
         return
-    console.print((out / "comparison.md").read_text(), markup=False, highlight=False)
-    console.print(f"written: {out / 'comparison.md'} and {out / 'comparison.json'}", markup=False, highlight=False)
+    from swarmpose.report.comparison import comparison_table
+
+    console.print(comparison_table(report), markup=False, highlight=False)
+    console.print(f"written: {out / 'comparison.md'} (with {out / 'comparison_over_time.png'} and "
+                  f"{out / 'comparison_d_mean.png'}), {out / 'comparison.html'} (one self-contained page) and "
+                  f"{out / 'comparison.json'}", markup=False, highlight=False)
 
 
 def _list_suites(names: list[str], *, seed: int, downsample: int, runs: int, n_clips: int, json_out: bool) -> None:

@@ -27,7 +27,8 @@ def demo(
 
     Steps: render the clip's real motion capture into 4 HumanEva-like cameras (once; cached under
     cache/sequences), fit the IK floor, track every run in parallel, then write the error graphs,
-    per-joint plot, overlay images and summary.md into OUT/report/.
+    per-joint plot, overlay images, summary.md and summary.html (the page with every image embedded)
+    into OUT/report/.
     """
     from swarmpose.report import make_report
     from swarmpose.track.runner import check_results_folder, resolve_sequence, track_runs
@@ -47,7 +48,7 @@ def demo(
     else:  # a fresh demo, an interrupted one (resumed) or more runs than a finished one (added)
         summary = track_runs(seq, config, runs, out, resume=(out / "config.json").is_file(), progress=not json_out)
     paths = make_report(out, overlay_frames=4)
-    data = {**summary, "report": str(paths.summary), "figures": [str(p) for p in paths.figures],
+    data = {**summary, "report": str(paths.summary), "html": str(paths.html), "figures": [str(p) for p in paths.figures],
             "overlays": [str(p) for p in paths.overlays]}
     if json_out:
         print_json(data)
@@ -58,6 +59,7 @@ def demo(
                   f"IK floor {summary['ik_floor_mm']:.1f} mm, MMTA {100 * summary['mmta']:.1f} %, "
                   f"{summary['frames_per_s']:.2f} frames/s per run")
     console.print(f"  report: {paths.summary}", markup=False, highlight=False)
+    console.print(f"  page:   {paths.html}  (self-contained: open in a browser)", markup=False, highlight=False)
     for p in [*paths.figures, *paths.overlays]:
         console.print(f"    {p}", markup=False, highlight=False)
 

@@ -15,7 +15,9 @@ from swarmpose.cli.common import console, err_console, escape, fail_on_user_erro
 @app.command()
 @fail_on_user_error
 def report(
-    results_dir: Annotated[Path, typer.Argument(help="A results folder written by `swarmpose track`.")],
+    results_dir: Annotated[Path, typer.Argument(help="A results folder written by `swarmpose track`, or a "
+                                                     "`swarmpose compare` folder (its figures and page are "
+                                                     "redrawn).")],
     video: Annotated[bool, typer.Option("--video", help="Also write the overlays of every frame as a video.")] = False,
     frames: Annotated[int, typer.Option("--frames", min=0,
                                         help="Number of overlay images (with the worst frame); 0: none.")] = 4,
@@ -30,15 +32,25 @@ def report(
                                                                   "(default: each view cut to the person).")] = False,
     json_out: Annotated[bool, typer.Option("--json", help="Print one JSON object with the paths written.")] = False,
 ) -> None:
-    """Write a report: error-over-time and per-joint plots, overlay images (and a video), summary.md.
+    """Write a report: error-over-time and per-joint plots, overlay images (and a video), summary.md and
+    summary.html (the same page with every image embedded, to open in a browser or send).
 
     The error plot shows D per frame of each run, their mean and the IK floor (thesis Fig. 6.5);
     the overlays draw the tracked cones (left limbs blue, right limbs vermillion, torso/head green)
     and the ground-truth skeleton (yellow) on every camera view, cut to the person; runs tracked on
     2D markers also show the detections (sky-blue rings).
+
+    On a `swarmpose compare` folder (one with comparison.json) it redraws that comparison's figures,
+    comparison.md and comparison.html; each entry's own folder (<clip>/<entry>/) takes this command too.
     """
     from swarmpose.errors import ConfigError
     from swarmpose.report import make_report
+
+    if (results_dir / "comparison.json").is_file() and not (results_dir / "config.json").is_file():
+        _report_comparison(results_dir, json_out=json_out, given={
+            "--video": video, "--run": run != 0, "--format": video_format is not None, "--sequence": sequence is not None,
+            "--out": out is not None, "--full-views": full_views, "--frames": frames != 4})
+        return
 
     if out is not None and out.exists() and not out.is_dir():
         raise ConfigError(f"--out {out} is a file; the report needs a folder")
@@ -56,12 +68,36 @@ def report(
         return
     console.print(f"[bold]report of {escape(str(results_dir))}[/bold]")
     console.print(f"  summary  {paths.summary}", markup=False, highlight=False)
+    if paths.html is not None:
+        console.print(f"  page     {paths.html}  (self-contained: open in a browser)", markup=False, highlight=False)
     for p in paths.figures:
         console.print(f"  figure   {p}", markup=False, highlight=False)
     for p in paths.overlays:
         console.print(f"  overlay  {p}", markup=False, highlight=False)
     if paths.video is not None:
         console.print(f"  video    {paths.video}", markup=False, highlight=False)
+
+
+def _report_comparison(folder: Path, *, json_out: bool, given: dict[str, bool]) -> None:
+    """`swarmpose report COMPARE_DIR`: the comparison's figures, comparison.md and comparison.html redrawn."""
+    from swarmpose.errors import ConfigError
+    from swarmpose.report.comparison import entry_folder, load_comparison, write_comparison
+
+    report = load_comparison(folder)
+    used = [opt for opt, on in given.items() if on]
+    if used:
+        example = entry_folder(folder, report["rows"][0]) if report["rows"] else folder / "<clip>" / "<entry>"
+        raise ConfigError(f"{', '.join(used)} {'applies' if len(used) == 1 else 'apply'} to one results folder; {folder} is a comparison: report one of "
+                          f"its entries with them (e.g. swarmpose report {example})")
+    paths = write_comparison(folder, report)
+    if json_out:
+        print_json(paths)
+        return
+    console.print(f"[bold]comparison {escape(str(report['suite']))} in {escape(str(folder))}[/bold]")
+    console.print(f"  table    {paths['comparison']}", markup=False, highlight=False)
+    console.print(f"  page     {paths['html']}  (self-contained: open in a browser)", markup=False, highlight=False)
+    for p in paths["figures"]:
+        console.print(f"  figure   {p}", markup=False, highlight=False)
 
 
 @app.command()

@@ -12,6 +12,7 @@ import numpy as np
 from swarmpose.errors import ConfigError
 from swarmpose.experiments.suites import Entry, suite
 from swarmpose.metrics import aggregate_runs
+from swarmpose.report.comparison import comparison_table, write_comparison
 from swarmpose.track.runner import (
     Job,
     check_results_folder,
@@ -61,7 +62,8 @@ def suite_configs(name: str, *, seed: int = 0, downsample: int = 1,
 def run_suite(name: str, sequences: list[Path], out_dir: Path, *, runs: int = 5, seed: int = 0,
               workers: int | None = None, scheduler: Any = None, resume: bool = False,
               downsample: int = 1, progress: bool = True, max_frames: int | None = None) -> dict[str, Any]:
-    """Run suite ``name`` on the sequences and write ``out_dir/{comparison.json, comparison.md}``."""
+    """Run suite ``name`` on the sequences and write ``out_dir/comparison.json`` and its report
+    (:func:`swarmpose.report.comparison.write_comparison`: ``comparison.md``, two figures, ``comparison.html``)."""
     configs = suite_configs(name, seed=seed, downsample=downsample, max_frames=max_frames)
     out_dir = Path(out_dir)
     jobs: list[Job] = []
@@ -107,26 +109,5 @@ def run_suite(name: str, sequences: list[Path], out_dir: Path, *, runs: int = 5,
     report = {"suite": name, "runs": runs, "seed": seed, "max_frames": max_frames,
               "lowest_fps": min(e.fps for e, _ in configs), "rows": rows}
     (out_dir / "comparison.json").write_text(json.dumps(report, indent=1) + "\n")
-    (out_dir / "comparison.md").write_text(comparison_table(report))
+    write_comparison(out_dir, report)  # comparison.md with its figures, and comparison.html
     return report
-
-
-def comparison_table(report: dict[str, Any]) -> str:
-    runs = f"{report['runs']} run{'' if report['runs'] == 1 else 's'}"
-    part = ""
-    if report.get("max_frames"):
-        n, slowest = report["max_frames"], report["lowest_fps"]
-        part = (f"; only the first {n} frames at {slowest:g} fps ({(n - 1) / slowest:.2f} s; the same stretch at "
-                "the other rates), --max-frames: a quick try, not the papers' comparison")
-    lines = [f"# Suite `{report['suite']}` ({runs} per entry, seed {report['seed']}{part})", "",
-             "| sequence | entry | eval/frame | D_mean mm (± over runs) | worst run D_mean | D_max mm | IK floor mm "
-             "| MMTA % | frames/s |",
-             "|---|---|---:|---:|---:|---:|---:|---:|---:|"]
-    for r in report["rows"]:
-        lines.append(f"| {r['sequence']} | {r['label']} | {r['evals_per_frame']} | {r['d_mean_mm']:.1f} "
-                     f"± {r['d_mean_std_over_runs']:.1f} | {r['worst_d_mean_mm']:.1f} | {r['d_max_mm']:.1f} "
-                     f"| {r['ik_floor_mm']:.1f} | {100 * r['mmta']:.1f} | {r['frames_per_s']:.2f} |")
-    refs = sorted({r["reference"] for r in report["rows"] if r["reference"]})
-    if refs:
-        lines += ["", "References: " + "; ".join(refs)]
-    return "\n".join(lines) + "\n"

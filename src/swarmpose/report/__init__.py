@@ -16,6 +16,11 @@ Public API
     The overlays of every frame as an animated GIF or an MP4.
 ``write_summary(results_dir) -> Path``
     ``summary.md``: configuration, error and per-joint tables, figures, versions.
+``write_html(markdown_file) -> Path``
+    The same page as one self-contained HTML file (``summary.html``, images embedded).
+``write_comparison(compare_dir) -> dict``
+    A ``swarmpose compare`` folder's table, figures (error over time per entry, every run's D_mean)
+    and HTML page.
 ``load_results(results_dir) -> Results``
     The folder read into memory (see :mod:`swarmpose.report.results` for the layout).
 
@@ -30,6 +35,8 @@ from pathlib import Path
 from typing import Any
 
 from swarmpose.errors import DataError
+from swarmpose.report.comparison import write_comparison
+from swarmpose.report.html import write_html
 from swarmpose.report.overlay import overlay_video, overlays, render_overlay
 from swarmpose.report.plots import error_over_time, per_joint_errors
 from swarmpose.report.results import Results, RunData, load_results
@@ -46,6 +53,8 @@ __all__ = [
     "overlays",
     "per_joint_errors",
     "render_overlay",
+    "write_comparison",
+    "write_html",
     "write_summary",
 ]
 
@@ -58,6 +67,8 @@ class ReportPaths:
     ----------
     summary : pathlib.Path
         ``summary.md``.
+    html : pathlib.Path or None
+        ``summary.html``: the summary as one self-contained page (figures and overlays embedded).
     figures : list of pathlib.Path
         The error plots.
     overlays : list of pathlib.Path
@@ -69,14 +80,15 @@ class ReportPaths:
     """
 
     summary: Path
+    html: Path | None = None
     figures: list[Path] = field(default_factory=list)
     overlays: list[Path] = field(default_factory=list)
     video: Path | None = None
     notes: list[str] = field(default_factory=list)
 
     def to_dict(self) -> dict[str, Any]:
-        """``{"summary", "figures", "overlays", "video"}`` with paths as strings (the CLI's ``--json``)."""
-        return {"summary": str(self.summary), "figures": [str(p) for p in self.figures],
+        """``{"summary", "html", "figures", "overlays", "video"}`` with paths as strings (the CLI's ``--json``)."""
+        return {"summary": str(self.summary), "html": None if self.html is None else str(self.html), "figures": [str(p) for p in self.figures],
                 "overlays": [str(p) for p in self.overlays],
                 "video": None if self.video is None else str(self.video)}
 
@@ -149,4 +161,5 @@ def make_report(
                 vid = overlay_video(res, out / f"overlay_run{run:03d}.{video_format}", run=run,
                                     fmt=video_format, scale=video_scale, sequence=sequence, crop=crop)
     summary = write_summary(res, out=out / "summary.md", figures=figures, overlays=over, video=vid, notes=notes)
-    return ReportPaths(summary=summary, figures=figures, overlays=over, video=vid, notes=notes)
+    page = write_html(summary)
+    return ReportPaths(summary=summary, html=page, figures=figures, overlays=over, video=vid, notes=notes)

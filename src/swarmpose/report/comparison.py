@@ -1,0 +1,219 @@
+"""The report of a ``swarmpose compare`` folder: the table, two figures and an HTML page.
+
+``comparison_over_time.png`` draws, per clip and frame rate, the mean 3D error over the runs of every
+entry against time, with the IK floor (as the thesis compares two trackers in Fig. 6.8-6.14);
+``comparison_d_mean.png`` draws every run's D_mean of every entry as a dot, their mean as a bar, and
+the IK floor, so the spread between runs is seen beside the gaps between entries.
+
+The folder layout is ``SUITE_DIR/<sequence>/<entry>/`` (each a ``swarmpose track`` results folder)
+with ``comparison.json`` (what :func:`swarmpose.experiments.run.run_suite` returns) at the top.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from swarmpose.errors import DataError, FormatError
+from swarmpose.io.files import read_json_object
+from swarmpose.report._style import IK_RGB, rgb01
+
+__all__ = ["comparison_table", "comparison_figures", "write_comparison", "load_comparison", "entry_folder"]
+
+#: Entry colours (Okabe-Ito, without yellow, which is faint on white).
+_ENTRY_RGB = ((0, 114, 178), (213, 94, 0), (0, 158, 115), (204, 121, 167), (86, 180, 233), (230, 159, 0),
+              (0, 0, 0))
+_ROW_KEYS = ("label", "fps", "sequence", "runs", "evals_per_frame", "d_mean_mm", "d_max_mm", "d_mean_std_over_runs",
+             "worst_d_mean_mm", "ik_floor_mm", "mmta", "frames_per_s", "out_dir")
+
+
+def comparison_table(report: dict[str, Any]) -> str:
+    """The Markdown table of a comparison: one row per clip and entry."""
+    runs = f"{report['runs']} run{'' if report['runs'] == 1 else 's'}"
+    part = ""
+    if report.get("max_frames"):
+        n, slowest = report["max_frames"], report["lowest_fps"]
+        part = (f"; only the first {n} frames at {slowest:g} fps ({(n - 1) / slowest:.2f} s; the same stretch at "
+                "the other rates), --max-frames: a quick try, not the papers' comparison")
+    lines = [f"# Suite `{report['suite']}` ({runs} per entry, seed {report['seed']}{part})", "",
+             "| sequence | entry | eval/frame | D_mean mm (± over runs) | worst run D_mean | D_max mm | IK floor mm "
+             "| MMTA % | frames/s |",
+             "|---|---|---:|---:|---:|---:|---:|---:|---:|"]
+    for r in report["rows"]:
+        lines.append(f"| {r['sequence']} | {r['label']} | {r['evals_per_frame']} | {r['d_mean_mm']:.1f} "
+                     f"± {r['d_mean_std_over_runs']:.1f} | {r['worst_d_mean_mm']:.1f} | {r['d_max_mm']:.1f} "
+                     f"| {r['ik_floor_mm']:.1f} | {100 * r['mmta']:.1f} | {r['frames_per_s']:.2f} |")
+    refs = sorted({r["reference"] for r in report["rows"] if r.get("reference")})
+    if refs:
+        lines += ["", "References: " + "; ".join(refs)]
+    return "\n".join(lines) + "\n"
+
+
+def load_comparison(folder: str | os.PathLike[str]) -> dict[str, Any]:
+    """Read ``FOLDER/comparison.json``; :class:`DataError` if there is none, :class:`FormatError` if it is not
+    a comparison (the message names the file and the missing field)."""
+    path = Path(folder) / "comparison.json"
+    if not path.is_file():
+        raise DataError(f"{path} not found: is {folder} a `swarmpose compare` folder?")
+    report = read_json_object(path)
+    for key in ("suite", "runs", "seed", "rows"):
+        if key not in report:
+            raise FormatError(f"no {key!r}: not a comparison written by `swarmpose compare`", path=path)
+    if not isinstance(report["rows"], list):
+        raise FormatError("'rows' must be a list of entries", path=path)
+    for i, row in enumerate(report["rows"]):
+        missing = [k for k in _ROW_KEYS if not isinstance(row, dict) or k not in row]
+        if missing:
+            raise FormatError(f"rows[{i}] has no {', '.join(repr(k) for k in missing)}", path=path)
+    report.setdefault("lowest_fps", min((float(r["fps"]) for r in report["rows"]), default=0.0))
+    return report
+
+
+def entry_folder(folder: str | os.PathLike[str], row: dict[str, Any]) -> Path:
+    """The results folder of a comparison row, inside ``folder`` (``<sequence>/<entry>``, the last two parts
+    of the recorded ``out_dir``, so the comparison folder can be moved or read from another directory)."""
+    recorded = Path(str(row["out_dir"]))
+    return Path(folder) / recorded.parent.name / recorded.name
+
+
+def _entry_key(row: dict[str, Any]) -> str:
+    """The entry's name without its frame rate: one colour for 'sppso 20fps' and 'sppso 60fps'."""
+    return re.sub(r"\s*\d+(\.\d+)?fps$", "", str(row["label"])) or str(row["label"])
+
+
+def _figure(figsize: tuple[float, float], dpi: float):
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=figsize, dpi=dpi)
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def comparison_figures(folder: str | os.PathLike[str], report: dict[str, Any] | None = None,
+                       *, dpi: float = 110) -> list[Path]:
+    """Draw ``comparison_over_time.png`` and ``comparison_d_mean.png`` into ``folder``.
+
+    Parameters
+    ----------
+    folder : path-like
+        The comparison folder (``comparison.json`` and ``<sequence>/<entry>/`` results folders).
+    report : dict, optional
+        Its ``comparison.json``; read from ``folder`` when not given.
+    dpi : float, default 110
+
+    Returns
+    -------
+    list of pathlib.Path
+        The two PNGs.
+
+    Raises
+    ------
+    DataError
+        An entry's results folder is missing or holds no finished run (the message names it).
+    """
+    from swarmpose.report.results import load_results
+
+    folder = Path(folder)
+    report = load_comparison(folder) if report is None else report
+    rows = report["rows"]
+    if not rows:
+        raise DataError(f"{folder}: the comparison has no entries")
+    keys = list(dict.fromkeys(_entry_key(r) for r in rows))
+    colour = {k: rgb01(_ENTRY_RGB[i % len(_ENTRY_RGB)]) for i, k in enumerate(keys)}
+    loaded = {id(r): load_results(entry_folder(folder, r)) for r in rows}
+    seqs = list(dict.fromkeys(str(r["sequence"]) for r in rows))
+    rates = sorted({float(r["fps"]) for r in rows})
+    suite, quick = report["suite"], " (quick try: --max-frames)" if report.get("max_frames") else ""
+
+    # -------------------------------------------------------------- error over time, one panel per clip x rate
+    fig = _figure((6.2 * len(rates), 3.6 * len(seqs) + 0.5), dpi)
+    axes = fig.subplots(len(seqs), len(rates), squeeze=False)
+    for i, seq in enumerate(seqs):
+        for j, fps in enumerate(rates):
+            ax = axes[i][j]
+            mine = [r for r in rows if str(r["sequence"]) == seq and float(r["fps"]) == fps]
+            top = 1.0
+            for r in mine:
+                res = loaded[id(r)]
+                D = np.stack([run.d_per_frame for run in res.runs])
+                mean = np.nanmean(D, axis=0) if np.isfinite(D).any(axis=0).all() else D.mean(axis=0)
+                top = max(top, float(np.nanmax(mean)) if np.isfinite(mean).any() else 0.0)
+                ax.plot(res.frame_times, mean, lw=1.8, color=colour[_entry_key(r)],
+                        marker="." if len(mean) < 30 else None,
+                        label=f"{r['label']}: {r['d_mean_mm']:.1f} mm")
+            ik = next((loaded[id(r)].ik_frame_error_mm for r in mine if loaded[id(r)].ik_frame_error_mm is not None),
+                      None)
+            if ik is not None:
+                t = next(loaded[id(r)].frame_times for r in mine if loaded[id(r)].ik_frame_error_mm is not None)
+                ax.plot(t, ik, lw=1.2, ls="--", color=rgb01(IK_RGB), label=f"IK floor, {float(np.nanmean(ik)):.1f} mm")
+            if not mine:
+                ax.text(0.5, 0.5, "no entry at this rate", ha="center", va="center", transform=ax.transAxes,
+                        color="0.5")
+            ax.set_ylim(0.0, top * 1.1)
+            ax.set_title(f"{seq}, {fps:g} fps", fontsize=10)
+            ax.set_xlabel("time (s)")
+            ax.set_ylabel("3D error D (mm), mean of the runs")
+            ax.grid(True, color="0.88", lw=0.6)
+            ax.set_axisbelow(True)
+            if mine:
+                ax.legend(loc="upper left", fontsize=7.5, framealpha=0.9)
+    fig.suptitle(f"{suite}: 3D error over time, mean of {report['runs']} run(s) per entry{quick}", fontsize=11)
+    fig.tight_layout()
+    over_time = folder / "comparison_over_time.png"
+    fig.savefig(over_time, dpi=dpi, format="png")
+
+    # -------------------------------------------------------------- every run's D_mean per entry
+    fig = _figure((8.0, 0.42 * len(rows) + 1.4), dpi)
+    ax = fig.add_subplot(1, 1, 1)
+    y = np.arange(len(rows))[::-1].astype(np.float64)
+    rng = np.random.default_rng(0)  # a fixed jitter: the figure is the same on every run
+    for yi, r in zip(y, rows, strict=True):
+        c = colour[_entry_key(r)]
+        per_run = np.array([run.summary.get("d_mean", np.nanmean(run.d_per_frame)) for run in loaded[id(r)].runs],
+                           dtype=np.float64)
+        ax.barh(yi, float(r["d_mean_mm"]), height=0.62, color=c, alpha=0.35, edgecolor=c, lw=0.8, zorder=2)
+        ax.scatter(per_run, yi + rng.uniform(-0.18, 0.18, per_run.size), s=14, color=c, edgecolor="black",
+                   lw=0.4, zorder=3)
+        ax.plot([r["ik_floor_mm"]] * 2, [yi - 0.34, yi + 0.34], color=rgb01(IK_RGB), lw=2.0, zorder=4)
+    labels = [str(r["label"]) if len(seqs) == 1 else f"{r['sequence']}: {r['label']}" for r in rows]
+    ax.set_yticks(y)
+    ax.set_yticklabels(labels, fontsize=8.5)
+    ax.set_xlabel("D_mean (mm): bar = mean over the runs, dots = each run, grey tick = IK floor")
+    ax.set_xlim(0.0, max(float(ax.get_xlim()[1]), 1.0))
+    ax.grid(True, axis="x", color="0.88", lw=0.6)
+    ax.set_axisbelow(True)
+    ax.set_title(f"{suite}: D_mean of every run{quick}", fontsize=11)
+    fig.tight_layout()
+    d_mean = folder / "comparison_d_mean.png"
+    fig.savefig(d_mean, dpi=dpi, format="png")
+    return [over_time, d_mean]
+
+
+def write_comparison(folder: str | os.PathLike[str], report: dict[str, Any] | None = None,
+                     *, figures: bool = True) -> dict[str, Any]:
+    """Write ``comparison.md`` (the table and, with ``figures``, the two figures) and ``comparison.html`` (the
+    same page, self-contained) into ``folder``.
+
+    Returns
+    -------
+    dict
+        ``{"comparison": md path, "html": html path, "figures": [png paths]}`` (paths as strings).
+    """
+    from swarmpose.report.html import write_html
+
+    folder = Path(folder)
+    report = load_comparison(folder) if report is None else report
+    pngs = comparison_figures(folder, report) if figures else []
+    text = comparison_table(report)
+    for p, alt in zip(pngs, ("mean 3D error over time of every entry", "D_mean of every run of every entry"),
+                      strict=False):
+        text += f"\n![{alt}]({p.name})\n"
+    md = folder / "comparison.md"
+    md.write_text(text, encoding="utf-8")
+    html = write_html(md, title=f"swarmpose compare {report['suite']}")
+    return {"comparison": str(md), "html": str(html), "figures": [str(p) for p in pngs]}

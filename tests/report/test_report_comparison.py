@@ -1,0 +1,86 @@
+"""The report of a `swarmpose compare` folder: the table, two figures drawn from the entries' own results
+folders, the page; `swarmpose report COMPARE_DIR`; bad comparison files named."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from swarmpose.cli.app import app
+from swarmpose.errors import DataError, FormatError
+from swarmpose.report.comparison import comparison_table, entry_folder, load_comparison, write_comparison
+from swarmpose.report.results import load_results
+
+
+def _row(res_dir: Path, label: str, fps: float, out_dir: str) -> dict:
+    s = json.loads((res_dir / "summary.json").read_text())
+    return {"label": label, "algo": label.split()[0], "fps": fps, "variant": "", "sequence": "walk", "runs": 2,
+            "frames": 6, "evals_per_frame": 1000, "d_mean_mm": s["d_mean_mm"], "d_max_mm": s["d_max_mm"],
+            "d_mean_std_over_runs": 1.0, "worst_d_mean_mm": s["worst"]["d_mean_mm"], "ik_floor_mm": s["ik_floor_mm"],
+            "mmta": s["mmta"], "mmtp_mm": s["mmtp_mm"], "frames_per_s": 3.0, "reference": "thesis", "out_dir": out_dir}
+
+
+@pytest.fixture()
+def comparison(fake_results, tmp_path: Path) -> Path:
+    """A comparison folder of two entries (copies of the fake results), recorded under another working
+    directory's relative path, as `compare` writes it."""
+    root = tmp_path / "cmp"
+    rows = []
+    for label in ("sppso 20fps", "apf 20fps"):
+        cell = root / "walk" / label.replace(" ", "_")
+        shutil.copytree(fake_results[0], cell, ignore=shutil.ignore_patterns("report"))
+        rows.append(_row(cell, label, 20.0, f"results/compare/x/walk/{label.replace(' ', '_')}"))
+    report = {"suite": "thesis-apf", "runs": 2, "seed": 0, "max_frames": None, "lowest_fps": 20.0, "rows": rows}
+    (root / "comparison.json").write_text(json.dumps(report))
+    return root
+
+
+def test_the_figures_and_the_page_are_written_from_the_entries(comparison: Path):
+    paths = write_comparison(comparison)
+    assert paths["figures"] == [str(comparison / "comparison_over_time.png"), str(comparison / "comparison_d_mean.png")]
+    for p in paths["figures"]:
+        assert Path(p).stat().st_size > 10_000
+    md = (comparison / "comparison.md").read_text()
+    report = load_comparison(comparison)
+    assert md.startswith(comparison_table(report))
+    assert "](comparison_over_time.png)" in md and "](comparison_d_mean.png)" in md
+    page = Path(paths["html"]).read_text()
+    assert page.count('<img src="data:image/png;base64,') == 2 and "<td>sppso 20fps</td>" in page
+    assert entry_folder(comparison, report["rows"][1]) == comparison / "walk" / "apf_20fps"
+
+
+def test_report_cli_redraws_a_comparison_and_refuses_run_options(comparison: Path):
+    res = CliRunner().invoke(app, ["report", str(comparison), "--json"])
+    assert res.exit_code == 0, res.output
+    out = json.loads(res.stdout)
+    assert out["html"] == str(comparison / "comparison.html") and len(out["figures"]) == 2
+    res = CliRunner().invoke(app, ["report", str(comparison), "--video", "--run", "1", "--json"])
+    assert res.exit_code == 2
+    msg = json.loads(res.stdout)["error"]
+    assert "--video, --run apply to one results folder" in msg and "walk/sppso_20fps" in msg
+
+
+def test_a_missing_entry_or_a_bad_comparison_file_is_named(comparison: Path):
+    shutil.rmtree(comparison / "walk" / "apf_20fps")
+    with pytest.raises(DataError, match="apf_20fps: no such results folder"):
+        write_comparison(comparison)
+    data = json.loads((comparison / "comparison.json").read_text())
+    del data["rows"][0]["out_dir"]
+    (comparison / "comparison.json").write_text(json.dumps(data))
+    with pytest.raises(FormatError, match=r"comparison.json.*rows\[0\] has no 'out_dir'"):
+        load_comparison(comparison)
+    with pytest.raises(DataError, match="not a `swarmpose compare` folder|is .* a `swarmpose compare` folder"):
+        load_comparison(comparison / "walk")
+
+
+def test_per_run_dots_are_the_runs_d_mean(comparison: Path):
+    """The dot chart's numbers: each run's D_mean as its summary has it (checked against the joints)."""
+    res = load_results(comparison / "walk" / "sppso_20fps")
+    import numpy as np
+
+    for run in res.runs:
+        assert run.summary["d_mean"] == pytest.approx(float(np.nanmean(run.d_per_frame)), abs=1e-9)
