@@ -139,3 +139,48 @@ def test_compare_list_shows_the_entries_without_running(tmp_path: Path):
     assert text.exit_code == 0 and "Sharifi" in text.stdout and "apf-dr05" in text.stdout
     res = runner.invoke(app, ["compare", "--json"])
     assert res.exit_code == 2 and "name a suite" in json.loads(res.stdout)["error"]
+
+
+def test_help_paragraphs_flow_and_flags_show_no_value_placeholder():
+    """A docstring paragraph is one paragraph at any width (not re-broken where the source lines end), and on/off
+    flags show no `<bool>` value, which they would refuse (`--json true` is an error)."""
+    out = subprocess.run([sys.executable, "-m", "swarmpose", "ik", "--help"], capture_output=True, text=True,
+                         check=False, env={**__import__("os").environ, "COLUMNS": "250"})
+    assert out.returncode == 0
+    assert "of the best fit of the model to the ground truth: the error no tracker" in out.stdout
+    json_line = next(ln for ln in out.stdout.splitlines() if "--json" in ln)
+    assert "<bool>" not in json_line and "<str>" in next(ln for ln in out.stdout.splitlines() if "--unit" in ln)
+
+
+def test_info_gives_the_facts_of_a_skeleton_it_cannot_map(tmp_path: Path):
+    bvh = tmp_path / "two_joints.bvh"
+    bvh.write_text("HIERARCHY\nROOT Root\n{\n OFFSET 0 0 0\n CHANNELS 6 Xposition Yposition Zposition Zrotation "
+                   "Xrotation Yrotation\n JOINT Arm\n {\n  OFFSET 0 10 0\n  CHANNELS 3 Zrotation Xrotation Yrotation\n"
+                   "  End Site\n  {\n   OFFSET 0 5 0\n  }\n }\n}\nMOTION\nFrames: 1\nFrame Time: 0.04\n"
+                   + " ".join(["0"] * 9) + "\n")
+    res = CliRunner().invoke(app, ["info", str(bvh), "--json"])
+    assert res.exit_code == 0, res.output
+    data = json.loads(res.stdout)
+    assert (data["frames"], data["frame_rate"], data["joints"], data["channels"]) == (1, 25.0, 2, 9)
+    assert data["skeleton"] is None and "not CMU-style" in data["warnings"][0]
+    plain = CliRunner().invoke(app, ["info", str(bvh)])
+    assert "1 frame at 25 fps" in plain.stdout and "cannot be tracked" in " ".join(plain.stderr.split())
+
+
+def test_ik_warns_about_an_implausible_unit(mocap_dir: Path):
+    res = CliRunner().invoke(app, ["ik", str(mocap_dir / "cmu_16_35_jog.bvh"), "--fps", "5", "--unit", "m", "--json"])
+    assert res.exit_code == 0, res.output
+    assert "is --unit right?" in json.loads(res.stdout)["warnings"][0] and "not a person's height" in res.stderr
+
+
+def test_negative_seeds_and_missing_clips_are_refused_before_any_work(tmp_path: Path):
+    runner = CliRunner()
+    for args in (["synth", str(tmp_path / "x.bvh"), "--out", str(tmp_path / "s"), "--seed", "-1"],
+                 ["bench", "fitness", "--seed", "-1"],
+                 ["compare", "thesis-apf", "--list", "--clip", str(tmp_path / "none.bvh")],
+                 ["compare", "thesis-apf", "--list", "--clip", str(tmp_path)]):
+        res = runner.invoke(app, [*args, "--json"])
+        assert res.exit_code == 2, (args, res.output)
+    listing = json.loads(runner.invoke(app, ["compare", "thesis-apf", "--list", "--max-frames", "4", "--json"]).stdout)
+    assert listing["max_frames"] == 4
+    assert {e["fps"]: e["max_frames"] for e in listing["suites"][0]["entries"]} == {20.0: 4, 60.0: 10}

@@ -18,6 +18,8 @@ def test_json_document():
     doc = json.loads(res.stdout)  # exactly one JSON object on stdout
     assert set(doc) >= {"machine", "rows", "prepare_ms"}
     assert doc["prepare_ms"] > 0 and doc["machine"]["cpu_count"] >= 1
+    assert doc["settings"] == {"backends": ["numba", "reference"], "scales": [4], "batches": [4, 6], "views": 4,
+                               "repeats": 1, "min_time_s": 0.01, "reference_max_batch": 2, "seed": 0}
     assert {r["backend"] for r in doc["rows"]} == {"numba", "reference"}
     for r in doc["rows"]:
         assert set(r) == {"backend", "width", "height", "batch", "evals_per_s", "ratio_to_reference"}

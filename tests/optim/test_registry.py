@@ -43,9 +43,10 @@ def test_names_and_describe():
     rows = describe()
     assert [r["name"] for r in rows] == list(names())
     for r in rows:
-        assert set(r) == {"name", "evals_per_frame", "reference"}
+        assert set(r) == {"name", "summary", "fitness", "evals_per_frame", "reference"}
         assert r["evals_per_frame"] == PAPER_BUDGETS[r["name"]]
-        assert r["reference"]
+        assert r["reference"] and len(r["summary"]) > 20  # every entry says what it is
+        assert r["fitness"] == ("reprojection" if r["name"].startswith("aapso") else "silhouette_edge")
 
 
 def test_cli_json_and_table(capsys):

@@ -202,3 +202,18 @@ def test_mp4_video(fake_results, tmp_path: Path):
 def test_bad_video_format(fake_results, tmp_path: Path):
     with pytest.raises(ConfigError, match="unknown video format"):
         overlay_video(fake_results[0], tmp_path / "v.avi")
+
+
+def test_gif_pictures_keep_uneven_frame_times():
+    """25 fps from a 60 fps sequence tracks frames 33 and 50 ms apart: each GIF picture lasts until the next one,
+    on GIF's 10-ms grid without drifting; even frames keep one duration."""
+    from swarmpose.report.overlay import gif_durations_ms
+
+    t = np.array([0, 2, 5, 7, 10, 12, 15, 17, 20, 22, 25]) / 60.0  # nearest 60-fps frames of a 25-fps clock
+    d = gif_durations_ms(t, default_ms=40)
+    assert d[:5] == [30, 50, 40, 50, 30] and d[-1] == 40
+    assert abs(sum(d[:-1]) - 1000 * t[-1]) <= 5  # the clock, not the sum of rounded steps
+    long = np.round(np.arange(0, 3000) / 25.0 * 60.0) / 60.0
+    assert abs(sum(gif_durations_ms(long, default_ms=40)[:-1]) - 1000 * long[-1]) <= 5
+    assert gif_durations_ms(np.arange(10) / 20.0, default_ms=50) == 50
+    assert gif_durations_ms(np.array([0.0]), default_ms=50) == 50

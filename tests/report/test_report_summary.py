@@ -42,6 +42,16 @@ def test_make_report_writes_everything(results_copy: Path):
     assert 'href="overlay_run000.gif"' in page and "<h2>Error per joint</h2>" in page
 
 
+def test_a_second_report_in_the_same_folder_leaves_no_stale_overlays(results_copy: Path):
+    first = make_report(results_copy, overlay_frames=4)
+    other = results_copy / "report" / "overlays" / "notes.txt"
+    other.write_text("mine")
+    second = make_report(results_copy, overlay_frames=1, run=1)
+    assert len(first.overlays) == 4 and len(second.overlays) == 1
+    assert sorted((results_copy / "report" / "overlays").glob("*.png")) == second.overlays
+    assert other.read_text() == "mine"  # only the report's own pictures are replaced
+
+
 def test_summary_has_the_numbers(results_copy: Path):
     s = json.loads((results_copy / "summary.json").read_text())
     md = write_summary(results_copy).read_text()

@@ -27,7 +27,7 @@ def main() -> None:
     import sys
 
     if "--json" not in sys.argv[1:]:
-        app()
+        command()()
         return
     try:
         from typer._click.exceptions import ClickException  # newer typer carries its own click
@@ -37,7 +37,7 @@ def main() -> None:
     from swarmpose.cli.common import print_json
 
     try:
-        rv = app(standalone_mode=False)
+        rv = command()(standalone_mode=False)
     except ClickException as exc:
         try:
             from typer import rich_utils
@@ -64,5 +64,40 @@ from swarmpose.cli import (  # noqa: E402
     track_commands,
 )
 
-__all__ = ["app", "main", "bench", "clip_commands", "compare_commands", "dataset_commands", "demo",
+__all__ = ["app", "main", "command", "bench", "clip_commands", "compare_commands", "dataset_commands", "demo",
            "report_commands", "synth_commands", "track_commands"]
+
+
+
+def _tidy_help(typer_app: typer.Typer) -> None:
+    """Docstring paragraphs joined into one line each, for every command (sub-apps included): typer keeps a
+    paragraph's line breaks, so an 80-column terminal showed every docstring line broken again mid-sentence."""
+    import inspect
+
+    for info in typer_app.registered_commands:
+        text = info.help if info.help is not None else inspect.getdoc(info.callback)
+        if text:
+            info.help = "\n\n".join(" ".join(p.split()) for p in inspect.cleandoc(text).split("\n\n"))
+    for group in typer_app.registered_groups:
+        if group.typer_instance is not None:
+            _tidy_help(group.typer_instance)
+
+
+def _without_flag_placeholders(command) -> None:
+    """On/off flags (``--json``, ``--video``, ``--help``) show no ``<bool>`` value placeholder in the help:
+    they take no value (``--json true`` is an error)."""
+    for param in getattr(command, "params", ()):
+        if getattr(param, "is_flag", False) and param.metavar is None:
+            param.metavar = ""
+    for sub in getattr(command, "commands", {}).values():
+        _without_flag_placeholders(sub)
+
+
+def command():
+    """The click command that ``swarmpose`` runs: :data:`app` with tidy help texts."""
+    cmd = typer.main.get_command(app)
+    _without_flag_placeholders(cmd)
+    return cmd
+
+
+_tidy_help(app)

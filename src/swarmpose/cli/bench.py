@@ -33,7 +33,7 @@ def fitness(
     repeats: int = typer.Option(5, help="Timing runs per measurement (the median is reported)."),
     min_time: float = typer.Option(0.3, help="Seconds per timing run."),
     reference_max_batch: int = typer.Option(200, help="Time the reference backend on at most this many poses."),
-    seed: int = typer.Option(0, help="Seed of the demo scene and the candidate poses."),
+    seed: int = typer.Option(0, min=0, help="Seed (>= 0) of the demo scene and the candidate poses."),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object instead of a table."),
 ) -> None:
     """Evaluations/s of each fitness backend (kinematics + projection + silhouette + edge, all views)."""
@@ -58,6 +58,9 @@ def fitness(
     res = run_fitness_benchmark(backends=names, scales=scale_list, batches=_ints(batches, "batches"),
                                 n_views=views, repeats=repeats, min_time=min_time,
                                 reference_max_batch=reference_max_batch, seed=seed, progress=say)
+    res["settings"] = {"backends": names, "scales": scale_list, "batches": _ints(batches, "batches"), "views": views,
+                       "repeats": repeats, "min_time_s": min_time, "reference_max_batch": reference_max_batch,
+                       "seed": seed}
     if json_out:
         print_json(res)
         return

@@ -23,17 +23,19 @@ def info(
 
     Reads CMU-style skeletons (the shared clips) and files written by `swarmpose export`.
     """
-    from swarmpose.io.mocap import load_clip, rest_height
+    from swarmpose.errors import FormatError
+    from swarmpose.io.bvh import read_bvh
+    from swarmpose.io.mocap import clip_from_bvh
     from swarmpose.joints import JOINTS15
 
-    c = load_clip(clip, unit_scale=_unit(unit), style="auto")
-    bvh = c.bvh
+    bvh = read_bvh(clip)  # a malformed file fails here, with its line
+    try:
+        c = clip_from_bvh(bvh, unit_scale=_unit(unit), style="auto")
+    except FormatError as exc:  # a skeleton swarmpose cannot map to 15 joints: the file's own facts still
+        _header_only(clip, bvh, exc, json_out)
+        return
     j15 = c.joints
-    height_mm = rest_height(bvh) * float(c.mm_per_unit)
-    warnings = []
-    if not 500.0 <= height_mm <= 2600.0:
-        warnings.append(f"the skeleton stands {height_mm / 1000.0:.2f} m tall in unit {c.unit_name!r}: "
-                        "not a person's height; is --unit right?")
+    height_mm, warnings = _height_check(c)
     data = {
         "clip": str(clip),
         "frames": int(bvh.frames),
@@ -63,7 +65,7 @@ def info(
         err_console.print(f"[bold yellow]warning:[/bold yellow] {escape(w)}", highlight=False)
 
     console.print(f"[bold]{escape(str(clip))}[/bold]")
-    console.print(f"  {data['frames']} frames at {data['frame_rate']:g} fps = {data['duration_s']:.3f} s, "
+    console.print(f"  {_frames(data['frames'])} at {data['frame_rate']:g} fps = {data['duration_s']:.3f} s, "
                   f"{data['joints']} joints / {data['channels']} channels, unit {data['unit']} "
                   f"({data['mm_per_unit']:.3f} mm per unit; the rest pose stands {height_mm:.0f} mm tall)")
     console.print(f"  pelvis travels {data['pelvis_path_m']:.2f} m; height "
@@ -72,6 +74,40 @@ def info(
     for name, d in data["joints15"].items():
         table.add_row(name, d["bvh_joint"], " ".join(f"{v:8.1f}" for v in d["start_mm"]))
     console.print(table)
+
+
+def _frames(n: int) -> str:
+    return f"{n} frame{'' if n == 1 else 's'}"
+
+
+def _height_check(c) -> tuple[float, list[str]]:
+    """The rest pose's height in mm, and a warning when it is not a person's (a wrong --unit)."""
+    from swarmpose.io.mocap import rest_height
+
+    height_mm = rest_height(c.bvh) * float(c.mm_per_unit)
+    warnings = []
+    if not 500.0 <= height_mm <= 2600.0:
+        warnings.append(f"the skeleton stands {height_mm / 1000.0:.2f} m tall in unit {c.unit_name!r}: "
+                        "not a person's height; is --unit right?")
+    return height_mm, warnings
+
+
+def _header_only(clip: Path, bvh, why: Exception, json_out: bool) -> None:
+    """`info` on a BVH whose skeleton has no 15-joint mapping: frames, rate, duration, joints, and why."""
+    reason = str(why)
+    data = {"clip": str(clip), "frames": int(bvh.frames), "frame_rate": float(bvh.frame_rate),
+            "duration_s": float(bvh.duration_s), "joints": len(bvh.joints), "channels": int(bvh.motion.shape[1]),
+            "skeleton": None, "joints15": None,
+            "warnings": [f"no HumanEva 15-joint mapping for this skeleton, so it cannot be tracked or fitted: "
+                         f"{reason}"]}
+    if json_out:
+        print_json(data)
+        return
+    console.print(f"[bold]{escape(str(clip))}[/bold]")
+    console.print(f"  {_frames(data['frames'])} at {data['frame_rate']:g} fps = {data['duration_s']:.3f} s, "
+                  f"{data['joints']} joints / {data['channels']} channels; root {escape(bvh.joints[0].name)}")
+    err_console.print(f"[bold yellow]warning:[/bold yellow] {escape(data['warnings'][0])} (swarmpose reads CMU-style "
+                      "skeletons and files written by `swarmpose export`)", highlight=False)
 
 
 @app.command()
@@ -106,6 +142,9 @@ def ik(
                           f"e.g. {Path(out) / (Path(clip).stem + '_ik.npz')}")
     note_upsampling(clip, fps)
     c = load_clip(clip, fps=fps, unit_scale=_unit(unit), style="auto")
+    _, warnings = _height_check(c)
+    for w in warnings:  # before the fit: a fit to a 25-m skeleton would give a floor that means nothing
+        err_console.print(f"[bold yellow]warning:[/bold yellow] {escape(w)}", highlight=False)
     spec = load_spec(model)
     body = BodyModel(spec, subject_from_clip(spec, c), "thesis" if "thesis" in spec.variants else None)
     with tqdm(total=c.frames, desc=f"IK {c.name}", unit="frame", file=sys.stderr, disable=json_out) as bar:
@@ -121,6 +160,7 @@ def ik(
                         "median": float(np.median(res.frame_error_mm))},
         "per_joint_mm": {n: float(v) for n, v in zip(JOINTS15, per_joint, strict=True)},
         "valid_under_hard_priors": float(valid.mean()),
+        "warnings": warnings,
     }
     if out is not None:
         out = Path(out)

@@ -32,6 +32,8 @@ def compare(
     list_only: bool = typer.Option(False, "--list", help="Only list the suite's entries (every suite's without "
                                                           "SUITE): algorithm, frame rate, variant, fitness, "
                                                           "evaluations per frame, paper; nothing is run."),
+    no_progress: bool = typer.Option(False, "--no-progress", help="No progress bars (for batch logs; --json "
+                                                                   "implies it)."),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object with the table's rows."),
 ) -> None:
     """Run an experiment suite (entries × clips × runs in parallel) and write a comparison report.
@@ -47,17 +49,22 @@ def compare(
     from swarmpose.track.runner import connect_scheduler, resolve_sequence
 
     if list_only:
+        from swarmpose.track.runner import check_source
+
+        for s in sources or []:
+            check_source(s)  # a plan with a clip that is not there is refused before the long run, too
         _list_suites([suite] if suite else list(SUITES), seed=seed, downsample=downsample, runs=runs,
-                     n_clips=len(sources or [None]), json_out=json_out)
+                     n_clips=len(sources or [None]), json_out=json_out, max_frames=max_frames)
         return
     if suite is None:
         raise ConfigError(f"name a suite: {', '.join(SUITES)} (`swarmpose compare --list` shows their entries)")
     suite_configs(suite, seed=seed, downsample=downsample, max_frames=max_frames)  # an unknown suite or a bad setting fails before any clip is synthesised
     client = connect_scheduler(scheduler) if scheduler else None  # a wrong address fails before any synthesis
-    seqs = [resolve_sequence(s, progress=not json_out) for s in (sources or [str(DEFAULT_CLIP)])]
+    progress = not (json_out or no_progress)
+    seqs = [resolve_sequence(s, progress=progress) for s in (sources or [str(DEFAULT_CLIP)])]
     out = out or Path("results") / "compare" / (suite if max_frames is None else f"{suite}-{max_frames}frames")
     report = run_suite(suite, seqs, out, runs=runs, seed=seed, workers=workers, scheduler=client,
-                       resume=resume, downsample=downsample, progress=not json_out, max_frames=max_frames)
+                       resume=resume, downsample=downsample, progress=progress, max_frames=max_frames)
     if json_out:
         print_json(report)
         return
@@ -69,7 +76,8 @@ def compare(
                   f"{out / 'comparison.json'}", markup=False, highlight=False)
 
 
-def _list_suites(names: list[str], *, seed: int, downsample: int, runs: int, n_clips: int, json_out: bool) -> None:
+def _list_suites(names: list[str], *, seed: int, downsample: int, runs: int, n_clips: int, json_out: bool,
+                 max_frames: int | None = None) -> None:
     """Print the entries of the named suites (validated as a run would validate them) without running."""
     from rich.table import Table
 
@@ -79,25 +87,38 @@ def _list_suites(names: list[str], *, seed: int, downsample: int, runs: int, n_c
     listing = []
     for name in names:
         entries = []
-        for e, cfg in suite_configs(name, seed=seed, downsample=downsample):
+        for e, cfg in suite_configs(name, seed=seed, downsample=downsample, max_frames=max_frames):
             evals = int(cfg.optimizer(load_model(cfg.model, None, cfg.variant)).evals_per_frame)
             entries.append({"label": e.label, "algo": e.algo, "fps": e.fps, "variant": e.variant,
                             "fitness": cfg.fitness_kind, "fitness_options": e.fitness_options,
-                            "evals_per_frame": evals, "reference": e.reference})
+                            "evals_per_frame": evals, "max_frames": cfg.max_frames, "reference": e.reference})
         listing.append({"suite": name, "entries": entries, "jobs": len(entries) * runs * n_clips})
     if json_out:
-        print_json({"suites": listing, "runs": runs, "clips": n_clips})
+        print_json({"suites": listing, "runs": runs, "clips": n_clips, "max_frames": max_frames})
         return
     for item in listing:
         table = Table(title=f"{item['suite']}: {len(item['entries'])} entries x {n_clips} "
                             f"clip{'' if n_clips == 1 else 's'} x {runs} run{'' if runs == 1 else 's'} = "
                             f"{item['jobs']} tracking jobs", title_justify="left")
-        for col in ("entry", "algorithm", "fps", "variant", "fitness", "evals/frame"):
-            table.add_column(col, justify="right" if col in ("fps", "evals/frame") else "left")
+        cols = ["entry", "algorithm", "fps", "variant", "fitness", "evals/frame"]
+        cols += ["frames"] if max_frames is not None else []
+        refs = list(dict.fromkeys(e["reference"] for e in item["entries"]))
+        # one paper section for the whole suite: said once under the table, each entry's figure in a column
+        base = {r.split(" (", 1)[0] for r in refs}
+        shared = base.pop() if len(base) == 1 else None
+        where = {r: r.split(" (", 1)[1].rstrip(")") if shared and " (" in r else ("-" if shared else r) for r in refs}
+        cols += [] if len(refs) == 1 else ["in the paper"]
+        for col in cols:
+            table.add_column(col, justify="right" if col in ("fps", "evals/frame", "frames") else "left")
         for e in item["entries"]:
             fitness = e["fitness"] + (f" ({e['fitness_options']})" if e["fitness_options"] else "")
-            table.add_row(e["label"], e["algo"], f"{e['fps']:g}", e["variant"] or "-", fitness,
-                          str(e["evals_per_frame"]))
+            row = [e["label"], e["algo"], f"{e['fps']:g}", e["variant"] or "-", fitness, str(e["evals_per_frame"])]
+            row += [str(e["max_frames"])] if max_frames is not None else []
+            table.add_row(*row, *([] if len(refs) == 1 else [where[e["reference"]] or "-"]))
         console.print(table)
-        for ref in dict.fromkeys(e["reference"] for e in item["entries"]):
-            console.print(f"  paper: {ref}", markup=False, highlight=False)
+        if len(refs) == 1 or shared:
+            console.print(f"  paper: {refs[0] if len(refs) == 1 else shared}", markup=False, highlight=False)
+        if max_frames is not None:
+            console.print(f"  --max-frames {max_frames}: the first {max_frames} frames at the lowest rate and the same "
+                          "stretch of time at the others (a quick try, not the papers' comparison)",
+                          markup=False, highlight=False)

@@ -39,7 +39,7 @@ def check(
         kinds = {"humaneva-release": "HumanEva release", "humaneva-subject": "HumanEva subject folder",
                  "leewalk": "Lee walk folder", "unknown": "unrecognised folder"}
         console.print(f"[bold]{kinds.get(report.kind, report.kind)}[/bold] {escape(report.path)}: "
-                      f"{len(report.cameras)} camera(s) {' '.join(report.cameras)}; "
+                      f"{len(report.cameras)} camera(s){''.join(' ' + c for c in report.cameras)}; "
                       f"{len(report.sequences)} sequence(s)", highlight=False)
         for p in report.problems:
             console.print(f"  [red]problem[/red] {escape(p)}", highlight=False)

@@ -36,7 +36,7 @@ def report(
     summary.html (the same page with every image embedded, to open in a browser or send).
 
     The error plot shows D per frame of each run, their mean and the IK floor (thesis Fig. 6.5);
-    the overlays draw the tracked cones (left limbs blue, right limbs vermillion, torso/head green)
+    the overlays draw the tracked cones (left limbs blue, right limbs orange, torso/head green)
     and the ground-truth skeleton (yellow) on every camera view, cut to the person; runs tracked on
     2D markers also show the detections (sky-blue rings).
 
@@ -108,14 +108,16 @@ def export(
                                                     "<results folder>_runXXX.bvh in it).")],
     run: Annotated[int, typer.Option("--run", min=0, help="Which run to export.")] = 0,
     z_up: Annotated[bool, typer.Option("--z-up", help="Keep the world's Z-up axes (default: Y up, "
-                                                      "(x, z, -y)).")] = False,
+                                                      "(x, z, -y)); `swarmpose info` and `ik` do not read "
+                                                      "such files back.")] = False,
     unit: Annotated[str, typer.Option("--unit", help="Length unit of the file: mm, cm or m.")] = "mm",
     order: Annotated[str, typer.Option("--order", help="Rotation channel order of every joint (ZXY, XYZ, ...), "
                                                        "or 'model' for each joint's own axes.")] = "ZXY",
     rest_facing: Annotated[str | None, typer.Option("--rest-facing", help="Where the rest pose (all channels zero) "
                                                     "faces in a Y-up file: +z (what animation tools expect; the "
                                                     "default) or +x (the body model's own zero pose). A --z-up "
-                                                    "file always keeps the model's zero pose.")] = None,
+                                                    "file always keeps the model's zero pose. Only default files "
+                                                    "(Y up, +z) can be read back by `swarmpose info` and `ik`.")] = None,
     resample: Annotated[bool, typer.Option("--resample/--no-resample", help="When the tracked frames are not evenly "
                                            "spaced (25 fps from a 60 fps sequence: 33 and 50 ms), interpolate "
                                            "the poses onto an even 1/fps clock (BVH has one frame time); "
@@ -168,7 +170,8 @@ def export(
             "joints": len(res.model.spec.joints), "axes": "z_up" if z_up else "y_up", "unit": unit,
             "rotation_order": order, "rest_facing": rest_facing,
             "resampled": resampled, "tracked_frames": int(r.params.shape[0]),
-            "tracked_interval_s": {"min": float(d.min()), "max": float(d.max())} if d.size else None}
+            # to the microsecond: frame times are differences of seconds (0.05 printed as 0.04999999999999982)
+            "tracked_interval_s": {"min": round(float(d.min()), 6), "max": round(float(d.max()), 6)} if d.size else None}
     if json_out:
         print_json(data)
         return

@@ -65,12 +65,13 @@ def synth(
     clip: Annotated[Path, typer.Argument(help="A BVH motion-capture file (CMU skeleton).")],
     out: Annotated[Path, typer.Option("--out", help="Sequence folder to write.")],
     fps: Annotated[float, typer.Option(help="Frame rate of the sequence (the clip is resampled).")] = 60.0,
-    seed: Annotated[int, typer.Option(help="Seed of background texture, sensor noise and markers.")] = 0,
+    seed: Annotated[int, typer.Option(min=0, help="Seed (>= 0) of background texture, sensor noise and markers.")] = 0,
     markers: Annotated[str, typer.Option(help="Marker set: joints15, extended (+toe and hand tips) or none.")] = "joints15",
     dropout: Annotated[float, typer.Option(help="Probability that a visible marker is not detected.")] = 0.05,
     false_per_view: Annotated[float, typer.Option(help="Mean false detections per frame and view (Poisson).")] = 0.5,
     marker_noise: Annotated[float, typer.Option("--marker-noise-px", help="Gaussian pixel noise of detections (sd).")] = 1.0,
-    no_occlusion: Annotated[bool, typer.Option("--no-occlusion", help="Keep markers hidden behind the body.")] = False,
+    no_occlusion: Annotated[bool, typer.Option("--no-occlusion", help="Detect every marker, also those the body hides (default: a "
+                                                                 "marker hidden behind the body is not detected).")] = False,
     clothing: Annotated[float, typer.Option("--clothing-mm", help="Clothing bulk added to clothed parts, mm.")] = 10.0,
     albedo: Annotated[str, typer.Option(help="Grey reflectance per material over the defaults, material=value[,...] "
                                              "with materials shirt (0.34), trousers (0.29), skin (0.28), hair "

@@ -46,6 +46,8 @@ def track(
                                                      "default --out then ends in -<N>frames)."),
     workers: int = typer.Option(None, min=1, help="Parallel worker processes (default: one per core, at most --runs)."),
     scheduler: str = typer.Option(None, help="Run on a Dask cluster at this address (dask.distributed)."),
+    no_progress: bool = typer.Option(False, "--no-progress", help="No progress bars (for batch logs; --json "
+                                                                   "implies it)."),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object with the summary."),
 ) -> None:
     """Track 3D motion frame by frame and measure it against the ground truth.
@@ -62,7 +64,8 @@ def track(
                       feature_options=features, optim_variant=variant, motion=motion,
                       max_frames=max_frames)
     client = connect_scheduler(scheduler) if scheduler else None  # a wrong address fails before any synthesis
-    seq = resolve_sequence(source, progress=not json_out)
+    progress = not (json_out or no_progress)
+    seq = resolve_sequence(source, progress=progress)
     if out is None:
         if isinstance(seq, str):  # a dataset spec such as humaneva:/data/HumanEva/S1/Walking_1
             from swarmpose.datasets import dataset_sequence_name
@@ -72,7 +75,7 @@ def track(
             name = seq.name
         out = Path("results") / f"{name}-{algo}-{fps:g}fps{'' if max_frames is None else f'-{max_frames}frames'}"
     summary = track_runs(seq, cfg, runs, out, resume=resume, workers=workers, scheduler=client,
-                         progress=not json_out)
+                         progress=progress)
     if max_frames is not None and summary["frames"] < max_frames:
         err_console.print(f"[yellow]note:[/yellow] the sequence has {summary['frames']} frames at {fps:g} fps: all "
                           f"were tracked (--max-frames {max_frames} is more)", highlight=False)

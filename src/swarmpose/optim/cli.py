@@ -15,7 +15,8 @@ def algorithms_command(json: bool = False) -> None:
     Parameters
     ----------
     json : bool
-        Print one JSON object ``{"algorithms": [{"name", "evals_per_frame", "reference"}, ...]}`` on one
+        Print one JSON object ``{"algorithms": [{"name", "summary", "fitness", "evals_per_frame", "reference"},
+        ...]}`` on one
         line instead of a table (the CLI's ``--json`` contract: exactly one object).
     """
     rows = describe()
@@ -25,10 +26,14 @@ def algorithms_command(json: bool = False) -> None:
     from rich.console import Console
     from rich.table import Table
 
-    table = Table(title="swarmpose optimisers")
+    table = Table(title="swarmpose optimisers (swarmpose track --algo NAME)", show_lines=True)
     table.add_column("name", style="bold")
+    table.add_column("what it is")
+    table.add_column("fitness", justify="left")
     table.add_column("evals/frame", justify="right")
-    table.add_column("reference")
+    table.add_column("paper")
+    fitness = {"silhouette_edge": "silhouette + edges (images)", "reprojection": "2D markers"}
     for r in rows:
-        table.add_row(r["name"], str(r["evals_per_frame"]), r["reference"])
+        table.add_row(r["name"], r["summary"], fitness.get(r["fitness"], r["fitness"]), str(r["evals_per_frame"]),
+                      r["reference"])
     Console().print(table)

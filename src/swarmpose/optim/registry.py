@@ -484,6 +484,7 @@ class _Entry:
     reference: str
     evals_per_frame: int
     pre_options: tuple[str, ...] = ()  # overrides consumed by the factory itself
+    summary: str = ""
 
 
 _REGISTRY: dict[str, _Entry] = {}
@@ -496,6 +497,7 @@ def register(
     reference: str,
     evals_per_frame: int,
     factory_options: tuple[str, ...] = (),
+    summary: str = "",
 ) -> None:
     """Add a named configuration; a name clash raises ``ConfigError``.
 
@@ -509,32 +511,44 @@ def register(
         The budget the paper states (checked against the built config by the tests).
     factory_options : tuple of str
         Override keys handled by the factory rather than by ``dataclasses.replace``.
+    summary : str
+        What the configuration is, in one line (``swarmpose algorithms``).
     """
     if name in _REGISTRY:
         raise ConfigError(f"optimiser name {name!r} is already registered")
-    _REGISTRY[name] = _Entry(factory, reference, int(evals_per_frame), tuple(factory_options))
+    _REGISTRY[name] = _Entry(factory, reference, int(evals_per_frame), tuple(factory_options), summary)
 
 
-register("sppso", _pso("sppso", REF_SPPSO, sppso_stages), reference=REF_SPPSO, evals_per_frame=1000)
-register("sppso3", _pso("sppso3", REF_SPPSO3, sppso3_stages), reference=REF_SPPSO3, evals_per_frame=1000)
+register("sppso", _pso("sppso", REF_SPPSO, sppso_stages), reference=REF_SPPSO, evals_per_frame=1000,
+         summary="SPPSO: PSO in 2 soft partitions, the torso (10 x 20), then the whole body with the root "
+                 "position's spread cut to 1/10 (20 x 40)")
+register("sppso3", _pso("sppso3", REF_SPPSO3, sppso3_stages), reference=REF_SPPSO3, evals_per_frame=1000,
+         summary="SPPSO in 3 soft partitions: torso, then all but forearms and calves, then the whole body")
 register(
-    "pso-global", _pso("pso-global", REF_GLOBAL, global_stages), reference=REF_GLOBAL, evals_per_frame=1000
+    "pso-global", _pso("pso-global", REF_GLOBAL, global_stages), reference=REF_GLOBAL, evals_per_frame=1000,
+    summary="baseline: one PSO over all parameters at once (25 x 40), no partitions",
 )
-register("hard2", _pso("hard2", REF_HARD2, hard2_stages), reference=REF_HARD2, evals_per_frame=1000)
-register("hpso12", _pso("hpso12", REF_HPSO12, hpso12_stages), reference=REF_HPSO12, evals_per_frame=7200)
+register("hard2", _pso("hard2", REF_HARD2, hard2_stages), reference=REF_HARD2, evals_per_frame=1000,
+         summary="baseline: SPPSO with hard partitions (the torso held fixed in stage 2)")
+register("hpso12", _pso("hpso12", REF_HPSO12, hpso12_stages), reference=REF_HPSO12, evals_per_frame=7200,
+         summary="baseline: hierarchical PSO, 12 hard partitions down the kinematic tree (10 x 60 each)")
 register(
     "apf",
     _apf("apf", REF_APF, n_particles=200, n_layers=5, alpha=0.5, diffusion="fixed", crossover=0.0),
     reference=REF_APF,
     evals_per_frame=1000,
+    summary="HumanEva's annealed particle filter (200 particles x 5 layers, fixed diffusion, no crossover)",
 )
-register("apf-dr05", _apf_dr05, reference=REF_APF_DR05, evals_per_frame=2000)
+register("apf-dr05", _apf_dr05, reference=REF_APF_DR05, evals_per_frame=2000,
+         summary="Deutscher & Reid's annealed particle filter with adaptive diffusion and crossover "
+                 "(200 x 10); the most accurate here")
 register(
     "aapso",
     _aapso("aapso", REF_AAPSO, True),
     reference=REF_AAPSO,
     evals_per_frame=4300,
     factory_options=("fps_scaling",),
+    summary="adaptive annealed PSO on 2D marker detections: torso, 4 limbs, head in 6 soft stages",
 )
 register(
     "aapso-fixed",
@@ -542,6 +556,7 @@ register(
     reference=REF_AAPSO_FIXED,
     evals_per_frame=4300,
     factory_options=("fps_scaling",),
+    summary="baseline: AAPSO with the non-adaptive covariance (eq. 16)",
 )
 
 
@@ -553,10 +568,18 @@ def names() -> tuple[str, ...]:
     return tuple(_REGISTRY)
 
 
+def default_fitness(name: str) -> str:
+    """The fitness ``swarmpose track --fitness auto`` gives an algorithm: the 2D-marker reprojection score for
+    the AAPSO family (Sharifi et al. track markers), silhouette + edges for the others (the thesis's)."""
+    return "reprojection" if name.startswith("aapso") else "silhouette_edge"
+
+
 def describe() -> list[dict[str, Any]]:
-    """``[{"name", "evals_per_frame", "reference"}, ...]`` for every named configuration."""
+    """``[{"name", "summary", "fitness", "evals_per_frame", "reference"}, ...]`` for every named configuration
+    (``fitness``: what ``--fitness auto`` uses with it)."""
     return [
-        {"name": n, "evals_per_frame": e.evals_per_frame, "reference": e.reference}
+        {"name": n, "summary": e.summary, "fitness": default_fitness(n), "evals_per_frame": e.evals_per_frame,
+         "reference": e.reference}
         for n, e in _REGISTRY.items()
     ]
 

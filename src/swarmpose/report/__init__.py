@@ -114,7 +114,8 @@ def make_report(
     video : bool, default False
         Also write the overlays of every frame as a video.
     overlay_frames : int, default 4
-        Number of overlay PNGs (spread over the sequence, with the worst frame); 0 for none.
+        Number of overlay PNGs (spread over the sequence, with the worst frame); 0 for none. Overlay
+        PNGs of an earlier report in ``out_dir/overlays`` are removed first.
     run : int, default 0
         The run drawn in the overlays and the video.
     out_dir : path-like, optional
@@ -155,6 +156,10 @@ def make_report(
             notes.append(f"overlays skipped: {exc}")
         else:
             if overlay_frames > 0:
+                # an earlier report's overlays in the same folder (other frames, another run) would sit beside
+                # the new ones that summary.md shows; they are redrawn from the results anyway
+                for old in (out / "overlays").glob("overlay_run*_frame*.png"):
+                    old.unlink()
                 over = overlays(res, overlay_frames, run=run, out_dir=out / "overlays", sequence=sequence,
                                 crop=crop)
             if video:

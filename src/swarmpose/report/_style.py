@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-#: Body side -> RGB (0-255): left limbs blue, right limbs vermillion, torso and head bluish green.
+#: Body side -> RGB (0-255): left limbs blue, right limbs vermillion (orange), torso and head bluish green.
 SIDE_RGB: dict[str, tuple[int, int, int]] = {
     "left": (0, 114, 178),
     "right": (213, 94, 0),

@@ -1,7 +1,7 @@
 """Overlay images of a tracked run: the estimated cones and the ground truth on the camera views.
 
 Every view of a frame is drawn as a tile: the camera image in grey, each truncated cone of the
-tracked pose filled semi-transparently and outlined (left limbs blue, right limbs vermillion, torso
+tracked pose filled semi-transparently and outlined (left limbs blue, right limbs orange, torso
 and head green; far cones first), and the ground-truth 15-joint skeleton in yellow with a dark
 border. Runs tracked on 2D markers also show the frame's detections (sky-blue rings, false ones
 included: what the tracker was given; in a cut-out view, those inside it). The tiles sit side by
@@ -31,7 +31,8 @@ from swarmpose.joints import BONES15
 from swarmpose.report._style import DETECTION_RGB, GT_RGB, SIDE_RGB, bgr
 from swarmpose.report.results import Results, as_results
 
-__all__ = ["render_overlay", "overlays", "overlay_video", "choose_frames", "crop_boxes", "follow_boxes"]
+__all__ = ["render_overlay", "overlays", "overlay_video", "choose_frames", "crop_boxes", "follow_boxes",
+           "gif_durations_ms"]
 
 _FONT = cv2.FONT_HERSHEY_SIMPLEX
 _SHIFT = 4  # sub-pixel bits for cv2 drawing
@@ -651,7 +652,25 @@ def overlay_video(
         if mp4 is not None:
             mp4.close()
     if mp4 is None:
-        ms = max(20, int(round(1000.0 / rate)))
-        gif_frames[0].save(out, save_all=True, append_images=gif_frames[1:], duration=ms, loop=0,
+        durations: int | list[int] = max(20, int(round(1000.0 / rate)))
+        if not fps:  # real time: each picture lasts until the next tracked frame (25 from 60 fps: 33 or 50 ms)
+            durations = gif_durations_ms(r.frame_times[shown], default_ms=durations)
+        gif_frames[0].save(out, save_all=True, append_images=gif_frames[1:], duration=durations, loop=0,
                            optimize=False, disposal=1)
     return out
+
+
+def gif_durations_ms(times_s: np.ndarray, *, default_ms: int) -> int | list[int]:
+    """How long each GIF picture is shown so that the pictures keep their frames' times.
+
+    GIF counts in hundredths of a second, so the frame times are rounded on the cumulative clock (errors do not
+    add up over a long clip); the last picture lasts as long as the mean step. Evenly spaced frames, or fewer
+    than two, give ``default_ms`` for all. Every duration is at least 20 ms (browsers slow shorter ones down).
+    """
+    t = np.asarray(times_s, dtype=np.float64)
+    if t.size < 2 or not np.all(np.isfinite(t)) or np.ptp(np.diff(t)) < 1e-6:
+        return default_ms
+    clock = np.round((t - t[0]) * 100.0) * 10.0  # ms, on the GIF's 10-ms grid
+    steps = np.diff(clock)
+    steps = np.append(steps, round(float(np.mean(np.diff(t))) * 100.0) * 10.0)
+    return [max(20, int(v)) for v in steps]

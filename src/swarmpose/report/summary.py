@@ -251,7 +251,7 @@ def write_summary(
     # ---------------------------------------------------------------- overlays
     if overlays or video:
         L += ["## Overlays", "",
-              "The tracked cones on the camera views (left limbs blue, right limbs vermillion, torso and head "
+              "The tracked cones on the camera views (left limbs blue, right limbs orange, torso and head "
               "green) and the ground-truth skeleton (yellow).", ""]
         for p in overlays:
             L += [f"![{Path(p).stem}]({_rel(Path(p), base)})", ""]

@@ -68,6 +68,21 @@ def resolve_sequence(source: str | Path, *, cache_dir: Path | None = None, progr
     return p
 
 
+def check_source(source: str | Path) -> None:
+    """Refuse a tracking source that is not there, without synthesising or opening it (``compare --list``):
+    a ``.bvh`` clip must be a file, a sequence folder must hold ``sequence.json``; dataset specs pass."""
+    p = Path(source)
+    if str(source).startswith(("humaneva:", "leewalk:")):
+        return
+    if p.suffix.lower() == ".bvh":
+        if not p.is_file():
+            raise DataError(f"{p}: no such BVH clip")
+        return
+    _check_sequence_folder(source, p)
+    if not (p / "sequence.json").is_file():
+        raise DataError(f"{p}: {'no such sequence folder' if not p.exists() else 'not a sequence folder (no sequence.json)'}")
+
+
 def _check_sequence_folder(source: str | Path, p: Path) -> None:
     """Say what a source that is not a sequence folder is (a results folder, some other file)."""
     if not str(source).strip():

@@ -123,7 +123,9 @@ class TrackConfig:
     def fitness_kind(self) -> str:
         if self.fitness != "auto":
             return self.fitness
-        return "reprojection" if self.algo.startswith("aapso") else "silhouette_edge"
+        from swarmpose.optim.registry import default_fitness
+
+        return default_fitness(self.algo)
 
 
 def run_seed(seed: int, run: int) -> np.random.SeedSequence:
