@@ -84,3 +84,22 @@ def test_per_run_dots_are_the_runs_d_mean(comparison: Path):
 
     for run in res.runs:
         assert run.summary["d_mean"] == pytest.approx(float(np.nanmean(run.d_per_frame)), abs=1e-9)
+
+
+def test_an_entry_with_a_missing_run_is_noted_and_drawn_from_the_runs_there_are(comparison: Path):
+    (comparison / "walk" / "apf_20fps" / "run_001" / "joints.npz").unlink()
+    paths = write_comparison(comparison)
+    (note,) = paths["notes"]
+    assert note.startswith("walk / apf 20fps: 1 of 2 runs finished") and "run_001" in note
+    assert f"> Note: {note}" in (comparison / "comparison.md").read_text()
+    res = CliRunner().invoke(app, ["report", str(comparison)])
+    assert res.exit_code == 0 and "1 of 2 runs finished" in " ".join(res.stderr.split())
+
+
+def test_one_colour_per_entry_whatever_the_rate():
+    from swarmpose.report.comparison import _entry_key
+
+    keys = {_entry_key({"label": x}) for x in ("aapso 25fps reprojection", "aapso 12fps reprojection")}
+    assert keys == {"aapso reprojection"}
+    assert _entry_key({"label": "sppso 20fps"}) == _entry_key({"label": "sppso 60fps"}) == "sppso"
+    assert _entry_key({"label": "sppso stage 2 10x80 20fps"}) == "sppso stage 2 10x80"

@@ -217,3 +217,5 @@ def test_gif_pictures_keep_uneven_frame_times():
     assert abs(sum(gif_durations_ms(long, default_ms=40)[:-1]) - 1000 * long[-1]) <= 5
     assert gif_durations_ms(np.arange(10) / 20.0, default_ms=50) == 50
     assert gif_durations_ms(np.array([0.0]), default_ms=50) == 50
+    thirty = gif_durations_ms(np.arange(301) / 30.0, default_ms=33)  # 33.3 ms: GIF has 30 or 40
+    assert set(thirty) == {30, 40} and abs(sum(thirty[:-1]) - 10_000) <= 5

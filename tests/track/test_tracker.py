@@ -419,6 +419,9 @@ def test_sources_that_are_not_sequences_are_named_and_leave_nothing_behind(short
     import shutil
 
     shutil.copytree(tmp_path / "res", cmp / "seq" / "sppso_20fps")
+    with pytest.raises(DataError, match="entries of a comparison that has not finished.*--resume.*sppso_20fps"):
+        load_results(cmp)
+    (cmp / "comparison.json").write_text("{}")
     with pytest.raises(DataError, match="holds a comparison.*sppso_20fps"):
         load_results(cmp)
     setup = prepare_track(short_sequence, TrackConfig(fps=20.0), tmp_path / "cut")

@@ -89,6 +89,15 @@ def _without_flag_placeholders(command) -> None:
     for param in getattr(command, "params", ()):
         if getattr(param, "is_flag", False) and param.metavar is None:
             param.metavar = ""
+    make_help = command.get_help_option  # --help is made when the help is shown, not kept in params
+
+    def help_option(ctx):
+        opt = make_help(ctx)
+        if opt is not None and opt.metavar is None:
+            opt.metavar = ""
+        return opt
+
+    command.get_help_option = help_option
     for sub in getattr(command, "commands", {}).values():
         _without_flag_placeholders(sub)
 

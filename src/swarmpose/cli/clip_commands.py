@@ -25,15 +25,16 @@ def info(
     """
     from swarmpose.errors import FormatError
     from swarmpose.io.bvh import read_bvh
-    from swarmpose.io.mocap import clip_from_bvh
+    from swarmpose.io.mocap import clip_from_bvh, map_skeleton
     from swarmpose.joints import JOINTS15
 
     bvh = read_bvh(clip)  # a malformed file fails here, with its line
     try:
-        c = clip_from_bvh(bvh, unit_scale=_unit(unit), style="auto")
+        map_skeleton(bvh, "auto")
     except FormatError as exc:  # a skeleton swarmpose cannot map to 15 joints: the file's own facts still
         _header_only(clip, bvh, exc, json_out)
         return
+    c = clip_from_bvh(bvh, unit_scale=_unit(unit), style="auto")  # no frames, no unit: errors, as before
     j15 = c.joints
     height_mm, warnings = _height_check(c)
     data = {
@@ -105,7 +106,8 @@ def _header_only(clip: Path, bvh, why: Exception, json_out: bool) -> None:
         return
     console.print(f"[bold]{escape(str(clip))}[/bold]")
     console.print(f"  {_frames(data['frames'])} at {data['frame_rate']:g} fps = {data['duration_s']:.3f} s, "
-                  f"{data['joints']} joints / {data['channels']} channels; root {escape(bvh.joints[0].name)}")
+                  f"{data['joints']} joint{'' if data['joints'] == 1 else 's'} / {data['channels']} channels; root "
+                  f"{escape(bvh.joints[0].name)}")
     err_console.print(f"[bold yellow]warning:[/bold yellow] {escape(data['warnings'][0])} (swarmpose reads CMU-style "
                       "skeletons and files written by `swarmpose export`)", highlight=False)
 

@@ -90,6 +90,8 @@ def _report_comparison(folder: Path, *, json_out: bool, given: dict[str, bool]) 
         raise ConfigError(f"{', '.join(used)} {'applies' if len(used) == 1 else 'apply'} to one results folder; {folder} is a comparison: report one of "
                           f"its entries with them (e.g. swarmpose report {example})")
     paths = write_comparison(folder, report)
+    for note in paths["notes"]:
+        err_console.print(f"[yellow]note:[/yellow] {escape(note)}", highlight=False)
     if json_out:
         print_json(paths)
         return

@@ -32,7 +32,7 @@ def algorithms_command(json: bool = False) -> None:
     table.add_column("fitness", justify="left")
     table.add_column("evals/frame", justify="right")
     table.add_column("paper")
-    fitness = {"silhouette_edge": "silhouette + edges (images)", "reprojection": "2D markers"}
+    fitness = {"silhouette_edge": "silhouette + edges (images)", "reprojection": "reprojection (2D markers)"}
     for r in rows:
         table.add_row(r["name"], r["summary"], fitness.get(r["fitness"], r["fitness"]), str(r["evals_per_frame"]),
                       r["reference"])

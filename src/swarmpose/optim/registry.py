@@ -541,7 +541,7 @@ register(
 )
 register("apf-dr05", _apf_dr05, reference=REF_APF_DR05, evals_per_frame=2000,
          summary="Deutscher & Reid's annealed particle filter with adaptive diffusion and crossover "
-                 "(200 x 10); the most accurate here")
+                 "(200 x 10); the most accurate on silhouettes here")
 register(
     "aapso",
     _aapso("aapso", REF_AAPSO, True),

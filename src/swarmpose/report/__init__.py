@@ -148,6 +148,10 @@ def make_report(
     notes: list[str] = []
     over: list[Path] = []
     vid: Path | None = None
+    # an earlier report's overlays in this folder (other frames, another run) would sit beside the new ones (or
+    # none) that summary.md shows; they are redrawn from the results whenever wanted
+    for old in (out / "overlays").glob("overlay_run*_frame*.png"):
+        old.unlink()
     if overlay_frames > 0 or video:
         try:
             res.sequence_path(sequence)
@@ -156,10 +160,6 @@ def make_report(
             notes.append(f"overlays skipped: {exc}")
         else:
             if overlay_frames > 0:
-                # an earlier report's overlays in the same folder (other frames, another run) would sit beside
-                # the new ones that summary.md shows; they are redrawn from the results anyway
-                for old in (out / "overlays").glob("overlay_run*_frame*.png"):
-                    old.unlink()
                 over = overlays(res, overlay_frames, run=run, out_dir=out / "overlays", sequence=sequence,
                                 crop=crop)
             if video:

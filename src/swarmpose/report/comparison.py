@@ -81,8 +81,10 @@ def entry_folder(folder: str | os.PathLike[str], row: dict[str, Any]) -> Path:
 
 
 def _entry_key(row: dict[str, Any]) -> str:
-    """The entry's name without its frame rate: one colour for 'sppso 20fps' and 'sppso 60fps'."""
-    return re.sub(r"\s*\d+(\.\d+)?fps$", "", str(row["label"])) or str(row["label"])
+    """The entry's name without its frame rate: one colour for 'sppso 20fps' and 'sppso 60fps', and for
+    'aapso 25fps reprojection' and 'aapso 12fps reprojection'."""
+    key = " ".join(re.sub(r"\b\d+(\.\d+)?fps\b", " ", str(row["label"])).split())
+    return key or str(row["label"])
 
 
 def _figure(figsize: tuple[float, float], dpi: float):
@@ -94,8 +96,25 @@ def _figure(figsize: tuple[float, float], dpi: float):
     return fig
 
 
+def _finished_runs(folder: Path, report: dict[str, Any]) -> tuple[dict[int, Any], list[str]]:
+    """Every row's loaded results folder (by ``id(row)``), and a note for each entry with fewer finished runs
+    than the comparison recorded (its figures then show the runs there are)."""
+    from swarmpose.report.results import load_results
+
+    loaded, notes = {}, []
+    for r in report["rows"]:
+        res = load_results(entry_folder(folder, r))
+        loaded[id(r)] = res
+        want = int(r.get("runs") or report["runs"])
+        if len(res.runs) < want:
+            notes.append(f"{r['sequence']} / {r['label']}: {len(res.runs)} of {want} runs finished "
+                         f"({', '.join(res.skipped) or 'the others are missing'}); the figures show those, the "
+                         "table the comparison's numbers")
+    return loaded, notes
+
+
 def comparison_figures(folder: str | os.PathLike[str], report: dict[str, Any] | None = None,
-                       *, dpi: float = 110) -> list[Path]:
+                       *, dpi: float = 110, notes: list[str] | None = None) -> list[Path]:
     """Draw ``comparison_over_time.png`` and ``comparison_d_mean.png`` into ``folder``.
 
     Parameters
@@ -105,6 +124,8 @@ def comparison_figures(folder: str | os.PathLike[str], report: dict[str, Any] | 
     report : dict, optional
         Its ``comparison.json``; read from ``folder`` when not given.
     dpi : float, default 110
+    notes : list, optional
+        Receives a line for each entry with fewer finished runs than the comparison recorded.
 
     Returns
     -------
@@ -116,8 +137,6 @@ def comparison_figures(folder: str | os.PathLike[str], report: dict[str, Any] | 
     DataError
         An entry's results folder is missing or holds no finished run (the message names it).
     """
-    from swarmpose.report.results import load_results
-
     folder = Path(folder)
     report = load_comparison(folder) if report is None else report
     rows = report["rows"]
@@ -125,19 +144,21 @@ def comparison_figures(folder: str | os.PathLike[str], report: dict[str, Any] | 
         raise DataError(f"{folder}: the comparison has no entries")
     keys = list(dict.fromkeys(_entry_key(r) for r in rows))
     colour = {k: rgb01(_ENTRY_RGB[i % len(_ENTRY_RGB)]) for i, k in enumerate(keys)}
-    loaded = {id(r): load_results(entry_folder(folder, r)) for r in rows}
+    loaded, missing = _finished_runs(folder, report)
+    if notes is not None:
+        notes.extend(missing)
     seqs = list(dict.fromkeys(str(r["sequence"]) for r in rows))
     rates = sorted({float(r["fps"]) for r in rows})
     suite, quick = report["suite"], " (quick try: --max-frames)" if report.get("max_frames") else ""
 
     # -------------------------------------------------------------- error over time, one panel per clip x rate
     fig = _figure((6.2 * len(rates), 3.6 * len(seqs) + 0.5), dpi)
-    axes = fig.subplots(len(seqs), len(rates), squeeze=False)
+    axes = fig.subplots(len(seqs), len(rates), squeeze=False, sharey="row")  # one error scale per clip
     for i, seq in enumerate(seqs):
+        top = 1.0
         for j, fps in enumerate(rates):
             ax = axes[i][j]
             mine = [r for r in rows if str(r["sequence"]) == seq and float(r["fps"]) == fps]
-            top = 1.0
             for r in mine:
                 res = loaded[id(r)]
                 D = np.stack([run.d_per_frame for run in res.runs])
@@ -145,53 +166,65 @@ def comparison_figures(folder: str | os.PathLike[str], report: dict[str, Any] | 
                 top = max(top, float(np.nanmax(mean)) if np.isfinite(mean).any() else 0.0)
                 ax.plot(res.frame_times, mean, lw=1.8, color=colour[_entry_key(r)],
                         marker="." if len(mean) < 30 else None,
-                        label=f"{r['label']}: {r['d_mean_mm']:.1f} mm")
+                        label=f"{r['label']}: {_runs_mean(res):.1f} mm")
             ik = next((loaded[id(r)].ik_frame_error_mm for r in mine if loaded[id(r)].ik_frame_error_mm is not None),
                       None)
             if ik is not None:
                 t = next(loaded[id(r)].frame_times for r in mine if loaded[id(r)].ik_frame_error_mm is not None)
-                ax.plot(t, ik, lw=1.2, ls="--", color=rgb01(IK_RGB), label=f"IK floor, {float(np.nanmean(ik)):.1f} mm")
+                ax.plot(t, ik, lw=1.2, ls="--", color=rgb01(IK_RGB), marker="." if len(ik) < 30 else None,
+                        label=f"IK floor, {float(np.nanmean(ik)):.1f} mm")
             if not mine:
                 ax.text(0.5, 0.5, "no entry at this rate", ha="center", va="center", transform=ax.transAxes,
                         color="0.5")
-            ax.set_ylim(0.0, top * 1.1)
             ax.set_title(f"{seq}, {fps:g} fps", fontsize=10)
             ax.set_xlabel("time (s)")
-            ax.set_ylabel("3D error D (mm), mean of the runs")
+            if j == 0:
+                ax.set_ylabel("3D error D (mm), mean of the runs")
             ax.grid(True, color="0.88", lw=0.6)
             ax.set_axisbelow(True)
             if mine:
                 ax.legend(loc="upper left", fontsize=7.5, framealpha=0.9)
+        axes[i][0].set_ylim(0.0, top * 1.15)  # shared along the row: the rates are compared on one scale
     fig.suptitle(f"{suite}: 3D error over time, mean of {report['runs']} run(s) per entry{quick}", fontsize=11)
     fig.tight_layout()
     over_time = folder / "comparison_over_time.png"
     fig.savefig(over_time, dpi=dpi, format="png")
 
     # -------------------------------------------------------------- every run's D_mean per entry
-    fig = _figure((8.0, 0.42 * len(rows) + 1.4), dpi)
+    labels = [str(r["label"]) if len(seqs) == 1 else f"{r['sequence']}: {r['label']}" for r in rows]
+    width = max(8.0, 5.0 + 0.075 * max(len(t) for t in labels))  # long clip names get room, the plot keeps its own
+    fig = _figure((width, 0.42 * len(rows) + 1.6), dpi)
     ax = fig.add_subplot(1, 1, 1)
     y = np.arange(len(rows))[::-1].astype(np.float64)
     rng = np.random.default_rng(0)  # a fixed jitter: the figure is the same on every run
     for yi, r in zip(y, rows, strict=True):
         c = colour[_entry_key(r)]
-        per_run = np.array([run.summary.get("d_mean", np.nanmean(run.d_per_frame)) for run in loaded[id(r)].runs],
-                           dtype=np.float64)
-        ax.barh(yi, float(r["d_mean_mm"]), height=0.62, color=c, alpha=0.35, edgecolor=c, lw=0.8, zorder=2)
+        per_run = _per_run_d_mean(loaded[id(r)])
+        ax.barh(yi, float(per_run.mean()), height=0.62, color=c, alpha=0.35, edgecolor=c, lw=0.8, zorder=2)
         ax.scatter(per_run, yi + rng.uniform(-0.18, 0.18, per_run.size), s=14, color=c, edgecolor="black",
                    lw=0.4, zorder=3)
         ax.plot([r["ik_floor_mm"]] * 2, [yi - 0.34, yi + 0.34], color=rgb01(IK_RGB), lw=2.0, zorder=4)
-    labels = [str(r["label"]) if len(seqs) == 1 else f"{r['sequence']}: {r['label']}" for r in rows]
     ax.set_yticks(y)
     ax.set_yticklabels(labels, fontsize=8.5)
-    ax.set_xlabel("D_mean (mm): bar = mean over the runs, dots = each run, grey tick = IK floor")
+    ax.set_xlabel("D_mean (mm)")
     ax.set_xlim(0.0, max(float(ax.get_xlim()[1]), 1.0))
     ax.grid(True, axis="x", color="0.88", lw=0.6)
     ax.set_axisbelow(True)
-    ax.set_title(f"{suite}: D_mean of every run{quick}", fontsize=11)
+    ax.set_title(f"{suite}: D_mean of every run{quick}\nbar: mean over the runs, dots: each run, grey tick: IK floor",
+                 fontsize=10)
     fig.tight_layout()
     d_mean = folder / "comparison_d_mean.png"
     fig.savefig(d_mean, dpi=dpi, format="png")
     return [over_time, d_mean]
+
+
+def _per_run_d_mean(res: Any) -> np.ndarray:
+    """Each finished run's D_mean (its summary's, else the mean of its scored frames)."""
+    return np.array([run.summary.get("d_mean", np.nanmean(run.d_per_frame)) for run in res.runs], dtype=np.float64)
+
+
+def _runs_mean(res: Any) -> float:
+    return float(_per_run_d_mean(res).mean())
 
 
 def write_comparison(folder: str | os.PathLike[str], report: dict[str, Any] | None = None,
@@ -202,18 +235,22 @@ def write_comparison(folder: str | os.PathLike[str], report: dict[str, Any] | No
     Returns
     -------
     dict
-        ``{"comparison": md path, "html": html path, "figures": [png paths]}`` (paths as strings).
+        ``{"comparison": md path, "html": html path, "figures": [png paths], "notes": [str]}`` (paths as
+        strings; a note for each entry with fewer finished runs than the comparison recorded).
     """
     from swarmpose.report.html import write_html
 
     folder = Path(folder)
     report = load_comparison(folder) if report is None else report
-    pngs = comparison_figures(folder, report) if figures else []
+    notes: list[str] = []
+    pngs = comparison_figures(folder, report, notes=notes) if figures else []
     text = comparison_table(report)
+    if notes:
+        text += "\n" + "".join(f"> Note: {n}\n" for n in notes)
     for p, alt in zip(pngs, ("mean 3D error over time of every entry", "D_mean of every run of every entry"),
                       strict=False):
         text += f"\n![{alt}]({p.name})\n"
     md = folder / "comparison.md"
     md.write_text(text, encoding="utf-8")
     html = write_html(md, title=f"swarmpose compare {report['suite']}")
-    return {"comparison": str(md), "html": str(html), "figures": [str(p) for p in pngs]}
+    return {"comparison": str(md), "html": str(html), "figures": [str(p) for p in pngs], "notes": notes}

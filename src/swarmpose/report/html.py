@@ -1,8 +1,9 @@
 """A report's Markdown as one self-contained HTML page (images embedded), to open in a browser or mail.
 
 The Markdown written by :func:`swarmpose.report.write_summary` and the comparison report is rendered with
-markdown-it-py (CommonMark with tables); every image it names that lies in the report folder is embedded as
-a ``data:`` URI, so the page needs no other file. Links (the overlay video) stay relative.
+markdown-it-py (CommonMark with tables); every local image it names (relative to the Markdown's folder, or an
+absolute path) is embedded as a ``data:`` URI, so the page needs no other file. Links (the overlay video) stay
+relative.
 """
 
 from __future__ import annotations

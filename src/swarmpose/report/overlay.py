@@ -652,9 +652,10 @@ def overlay_video(
         if mp4 is not None:
             mp4.close()
     if mp4 is None:
-        durations: int | list[int] = max(20, int(round(1000.0 / rate)))
-        if not fps:  # real time: each picture lasts until the next tracked frame (25 from 60 fps: 33 or 50 ms)
-            durations = gif_durations_ms(r.frame_times[shown], default_ms=durations)
+        # real time: each picture lasts until the next tracked frame (25 from 60 fps: 33 or 50 ms); a given
+        # rate: even steps. Either on GIF's 10-ms clock, so that 30 fps does not play as 33 (30 ms each).
+        times = r.frame_times[shown] if not fps else np.arange(len(shown)) / rate
+        durations = gif_durations_ms(times, default_ms=max(20, int(round(1000.0 / rate))))
         gif_frames[0].save(out, save_all=True, append_images=gif_frames[1:], duration=durations, loop=0,
                            optimize=False, disposal=1)
     return out
@@ -664,12 +665,15 @@ def gif_durations_ms(times_s: np.ndarray, *, default_ms: int) -> int | list[int]
     """How long each GIF picture is shown so that the pictures keep their frames' times.
 
     GIF counts in hundredths of a second, so the frame times are rounded on the cumulative clock (errors do not
-    add up over a long clip); the last picture lasts as long as the mean step. Evenly spaced frames, or fewer
-    than two, give ``default_ms`` for all. Every duration is at least 20 ms (browsers slow shorter ones down).
+    add up over a long clip: 30 fps alternates 30 and 40 ms); the last picture lasts as long as the mean step.
+    Fewer than two frames give ``default_ms``. Every duration is at least 20 ms (browsers slow shorter ones
+    down), so above 50 pictures per second a GIF plays slower than real time; an MP4 does not.
     """
     t = np.asarray(times_s, dtype=np.float64)
-    if t.size < 2 or not np.all(np.isfinite(t)) or np.ptp(np.diff(t)) < 1e-6:
+    if t.size < 2 or not np.all(np.isfinite(t)):
         return default_ms
+    if np.ptp(np.diff(t)) < 1e-6 and abs(np.diff(t)[0] * 100.0 - round(np.diff(t)[0] * 100.0)) < 1e-6:
+        return max(20, int(round(np.diff(t)[0] * 1000.0)))  # whole hundredths: one duration for all
     clock = np.round((t - t[0]) * 100.0) * 10.0  # ms, on the GIF's 10-ms grid
     steps = np.diff(clock)
     steps = np.append(steps, round(float(np.mean(np.diff(t))) * 100.0) * 10.0)

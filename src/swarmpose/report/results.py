@@ -325,7 +325,12 @@ def load_results(results_dir: str | os.PathLike[str]) -> Results:
         entries = sorted(c.parent for c in root.glob("*/*/config.json"))
         if entries:  # a `swarmpose compare` folder: <sequence>/<entry>/ are the results folders
             listed = ", ".join(str(e) for e in entries[:3]) + (f" and {len(entries) - 3} more" if len(entries) > 3 else "")
-            raise DataError(f"{root} holds a comparison (comparison.md); report one of its entries: {listed}")
+            if (root / "comparison.json").is_file():
+                raise DataError(f"{root} holds a comparison (comparison.json), not one run's results; its entries "
+                                f"are: {listed}")
+            raise DataError(f"{root} holds the entries of a comparison that has not finished (no comparison.json): "
+                            "continue it with the same `swarmpose compare` command and --resume, which also writes "
+                            f"its table and figures; or report one of its entries: {listed}")
         raise DataError(f"{cfg_file} not found: is this a swarmpose results folder?")
     config = read_json_object(cfg_file)
     runs: list[RunData] = []
