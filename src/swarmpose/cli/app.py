@@ -68,7 +68,6 @@ __all__ = ["app", "main", "command", "bench", "clip_commands", "compare_commands
            "report_commands", "synth_commands", "track_commands"]
 
 
-
 def _tidy_help(typer_app: typer.Typer) -> None:
     """Docstring paragraphs joined into one line each, for every command (sub-apps included): typer keeps a
     paragraph's line breaks, so an 80-column terminal showed every docstring line broken again mid-sentence."""

@@ -55,10 +55,11 @@ def fitness(
     scale_list = _ints(scales, "scales")
     if any(f not in (1, 2, 4, 8) for f in scale_list):
         raise ConfigError(f"--scales: each factor must be 1, 2, 4 or 8 (what `track --downsample` takes), got {scales!r}")
-    res = run_fitness_benchmark(backends=names, scales=scale_list, batches=_ints(batches, "batches"),
+    batch_list = _ints(batches, "batches")
+    res = run_fitness_benchmark(backends=names, scales=scale_list, batches=batch_list,
                                 n_views=views, repeats=repeats, min_time=min_time,
                                 reference_max_batch=reference_max_batch, seed=seed, progress=say)
-    res["settings"] = {"backends": names, "scales": scale_list, "batches": _ints(batches, "batches"), "views": views,
+    res["settings"] = {"backends": names, "scales": scale_list, "batches": batch_list, "views": views,
                        "repeats": repeats, "min_time_s": min_time, "reference_max_batch": reference_max_batch,
                        "seed": seed}
     if json_out:

@@ -103,10 +103,10 @@ def _list_suites(names: list[str], *, seed: int, downsample: int, runs: int, n_c
         cols = ["entry", "algorithm", "fps", "variant", "fitness", "evals/frame"]
         cols += ["frames"] if max_frames is not None else []
         refs = list(dict.fromkeys(e["reference"] for e in item["entries"]))
-        # one paper section for the whole suite: said once under the table, each entry's figure in a column
-        base = {r.split(" (", 1)[0] for r in refs}
-        shared = base.pop() if len(base) == 1 else None
-        where = {r: r.split(" (", 1)[1].rstrip(")") if shared and " (" in r else ("-" if shared else r) for r in refs}
+        # one reference for the suite: said under the table; one paper section: said there, with each entry's
+        # figures in a column; several papers: each entry's reference in the column
+        bases = {r.split(" (", 1)[0] for r in refs}
+        footer = refs[0] if len(refs) == 1 else (bases.pop() if len(bases) == 1 else None)
         cols += [] if len(refs) == 1 else ["in the paper"]
         for col in cols:
             table.add_column(col, justify="right" if col in ("fps", "evals/frame", "frames") else "left")
@@ -114,11 +114,19 @@ def _list_suites(names: list[str], *, seed: int, downsample: int, runs: int, n_c
             fitness = e["fitness"] + (f" ({e['fitness_options']})" if e["fitness_options"] else "")
             row = [e["label"], e["algo"], f"{e['fps']:g}", e["variant"] or "-", fitness, str(e["evals_per_frame"])]
             row += [str(e["max_frames"])] if max_frames is not None else []
-            table.add_row(*row, *([] if len(refs) == 1 else [where[e["reference"]] or "-"]))
+            table.add_row(*row, *([] if len(refs) == 1 else [_in_paper(e["reference"], footer)]))
         console.print(table)
-        if len(refs) == 1 or shared:
-            console.print(f"  paper: {refs[0] if len(refs) == 1 else shared}", markup=False, highlight=False)
+        if footer:
+            console.print(f"  paper: {footer}", markup=False, highlight=False)
         if max_frames is not None:
             console.print(f"  --max-frames {max_frames}: the first {max_frames} frames at the lowest rate and the same "
                           "stretch of time at the others (a quick try, not the papers' comparison)",
                           markup=False, highlight=False)
+
+
+def _in_paper(ref: str, footer: str | None) -> str:
+    """An entry's cell in the listing's paper column: the part of its reference after the suite's shared
+    section (``Fig. 6.10``), or the whole reference when the suite cites several papers."""
+    if footer is None:
+        return ref or "-"
+    return ref.split(" (", 1)[1].rstrip(")") if " (" in ref else "-"

@@ -12,7 +12,7 @@ import numpy as np
 from swarmpose.errors import ConfigError
 from swarmpose.experiments.suites import Entry, suite
 from swarmpose.metrics import aggregate_runs
-from swarmpose.report.comparison import comparison_table, write_comparison
+from swarmpose.report.comparison import write_comparison
 from swarmpose.track.runner import (
     Job,
     check_results_folder,
@@ -23,7 +23,7 @@ from swarmpose.track.runner import (
 )
 from swarmpose.track.tracker import TrackConfig, prepare_track, write_config
 
-__all__ = ["run_suite", "suite_configs", "comparison_table"]
+__all__ = ["run_suite", "suite_configs"]
 
 
 def _slug(text: str) -> str:

@@ -21,6 +21,7 @@ import numpy as np
 from swarmpose.errors import DataError, FormatError
 from swarmpose.io.files import read_json_object
 from swarmpose.report._style import IK_RGB, rgb01
+from swarmpose.report.plots import _figure
 
 __all__ = ["comparison_table", "comparison_figures", "write_comparison", "load_comparison", "entry_folder"]
 
@@ -87,15 +88,6 @@ def _entry_key(row: dict[str, Any]) -> str:
     return key or str(row["label"])
 
 
-def _figure(figsize: tuple[float, float], dpi: float):
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=figsize, dpi=dpi)
-    FigureCanvasAgg(fig)
-    return fig
-
-
 def _finished_runs(folder: Path, report: dict[str, Any]) -> tuple[dict[int, Any], list[str]]:
     """Every row's loaded results folder (by ``id(row)``), and a note for each entry with fewer finished runs
     than the comparison recorded (its figures then show the runs there are)."""
@@ -147,6 +139,7 @@ def comparison_figures(folder: str | os.PathLike[str], report: dict[str, Any] | 
     loaded, missing = _finished_runs(folder, report)
     if notes is not None:
         notes.extend(missing)
+    per_run = {key: _per_run_d_mean(res) for key, res in loaded.items()}  # each finished run's D_mean
     seqs = list(dict.fromkeys(str(r["sequence"]) for r in rows))
     rates = sorted({float(r["fps"]) for r in rows})
     suite, quick = report["suite"], " (quick try: --max-frames)" if report.get("max_frames") else ""
@@ -166,12 +159,11 @@ def comparison_figures(folder: str | os.PathLike[str], report: dict[str, Any] | 
                 top = max(top, float(np.nanmax(mean)) if np.isfinite(mean).any() else 0.0)
                 ax.plot(res.frame_times, mean, lw=1.8, color=colour[_entry_key(r)],
                         marker="." if len(mean) < 30 else None,
-                        label=f"{r['label']}: {_runs_mean(res):.1f} mm")
-            ik = next((loaded[id(r)].ik_frame_error_mm for r in mine if loaded[id(r)].ik_frame_error_mm is not None),
-                      None)
-            if ik is not None:
-                t = next(loaded[id(r)].frame_times for r in mine if loaded[id(r)].ik_frame_error_mm is not None)
-                ax.plot(t, ik, lw=1.2, ls="--", color=rgb01(IK_RGB), marker="." if len(ik) < 30 else None,
+                        label=f"{r['label']}: {per_run[id(r)].mean():.1f} mm")
+            with_ik = next((loaded[id(r)] for r in mine if loaded[id(r)].ik_frame_error_mm is not None), None)
+            if with_ik is not None:
+                ik = with_ik.ik_frame_error_mm
+                ax.plot(with_ik.frame_times, ik, lw=1.2, ls="--", color=rgb01(IK_RGB), marker="." if len(ik) < 30 else None,
                         label=f"IK floor, {float(np.nanmean(ik)):.1f} mm")
             if not mine:
                 ax.text(0.5, 0.5, "no entry at this rate", ha="center", va="center", transform=ax.transAxes,
@@ -199,9 +191,9 @@ def comparison_figures(folder: str | os.PathLike[str], report: dict[str, Any] | 
     rng = np.random.default_rng(0)  # a fixed jitter: the figure is the same on every run
     for yi, r in zip(y, rows, strict=True):
         c = colour[_entry_key(r)]
-        per_run = _per_run_d_mean(loaded[id(r)])
-        ax.barh(yi, float(per_run.mean()), height=0.62, color=c, alpha=0.35, edgecolor=c, lw=0.8, zorder=2)
-        ax.scatter(per_run, yi + rng.uniform(-0.18, 0.18, per_run.size), s=14, color=c, edgecolor="black",
+        runs_d = per_run[id(r)]
+        ax.barh(yi, float(runs_d.mean()), height=0.62, color=c, alpha=0.35, edgecolor=c, lw=0.8, zorder=2)
+        ax.scatter(runs_d, yi + rng.uniform(-0.18, 0.18, runs_d.size), s=14, color=c, edgecolor="black",
                    lw=0.4, zorder=3)
         ax.plot([r["ik_floor_mm"]] * 2, [yi - 0.34, yi + 0.34], color=rgb01(IK_RGB), lw=2.0, zorder=4)
     ax.set_yticks(y)
@@ -223,14 +215,9 @@ def _per_run_d_mean(res: Any) -> np.ndarray:
     return np.array([run.summary.get("d_mean", np.nanmean(run.d_per_frame)) for run in res.runs], dtype=np.float64)
 
 
-def _runs_mean(res: Any) -> float:
-    return float(_per_run_d_mean(res).mean())
-
-
-def write_comparison(folder: str | os.PathLike[str], report: dict[str, Any] | None = None,
-                     *, figures: bool = True) -> dict[str, Any]:
-    """Write ``comparison.md`` (the table and, with ``figures``, the two figures) and ``comparison.html`` (the
-    same page, self-contained) into ``folder``.
+def write_comparison(folder: str | os.PathLike[str], report: dict[str, Any] | None = None) -> dict[str, Any]:
+    """Write the two figures, ``comparison.md`` (the table and the figures) and ``comparison.html`` (the same
+    page, self-contained) into ``folder``.
 
     Returns
     -------
@@ -243,12 +230,12 @@ def write_comparison(folder: str | os.PathLike[str], report: dict[str, Any] | No
     folder = Path(folder)
     report = load_comparison(folder) if report is None else report
     notes: list[str] = []
-    pngs = comparison_figures(folder, report, notes=notes) if figures else []
+    pngs = comparison_figures(folder, report, notes=notes)
     text = comparison_table(report)
     if notes:
         text += "\n" + "".join(f"> Note: {n}\n" for n in notes)
     for p, alt in zip(pngs, ("mean 3D error over time of every entry", "D_mean of every run of every entry"),
-                      strict=False):
+                      strict=True):
         text += f"\n![{alt}]({p.name})\n"
     md = folder / "comparison.md"
     md.write_text(text, encoding="utf-8")

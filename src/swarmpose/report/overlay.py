@@ -672,9 +672,9 @@ def gif_durations_ms(times_s: np.ndarray, *, default_ms: int) -> int | list[int]
     t = np.asarray(times_s, dtype=np.float64)
     if t.size < 2 or not np.all(np.isfinite(t)):
         return default_ms
-    if np.ptp(np.diff(t)) < 1e-6 and abs(np.diff(t)[0] * 100.0 - round(np.diff(t)[0] * 100.0)) < 1e-6:
-        return max(20, int(round(np.diff(t)[0] * 1000.0)))  # whole hundredths: one duration for all
+    step = np.diff(t)
+    if np.ptp(step) < 1e-6 and abs(step[0] * 100.0 - round(step[0] * 100.0)) < 1e-6:
+        return max(20, int(round(step[0] * 1000.0)))  # whole hundredths: one duration for all
     clock = np.round((t - t[0]) * 100.0) * 10.0  # ms, on the GIF's 10-ms grid
-    steps = np.diff(clock)
-    steps = np.append(steps, round(float(np.mean(np.diff(t))) * 100.0) * 10.0)
+    steps = np.append(np.diff(clock), round(float(step.mean()) * 100.0) * 10.0)
     return [max(20, int(v)) for v in steps]
