@@ -303,11 +303,13 @@ def test_imageio_fallback(he1, monkeypatch):
             pass
 
     path = he1.subject_dir / "Image_Data" / "Walking_1_(C1).avi"
-    monkeypatch.setattr(iio, "get_reader", lambda p: FakeReader())
+    asked = []
+    monkeypatch.setattr(iio, "get_reader", lambda p, format=None: asked.append(format) or FakeReader())
     with VideoSource(path) as v:
         assert v.n_frames == 4 and v.size == (8, 6) and v.read(3)[0, 0, 0] == 30
+    assert asked == ["FFMPEG"]  # not every imageio plugin in turn
 
-    def failing(p):
+    def failing(p, format=None):
         raise ValueError("no backend for .avi")
 
     monkeypatch.setattr(iio, "get_reader", failing)

@@ -7,6 +7,10 @@ import json
 from typer.testing import CliRunner
 
 from swarmpose.cli.app import app
+from swarmpose.fitness import torch_available
+
+#: What --backends auto measures here.
+AUTO = ["numba", *(["torch"] if torch_available() else []), "reference"]
 
 QUICK = ["bench", "fitness", "--scales", "4", "--batches", "4,6", "--repeats", "1", "--min-time", "0.01",
          "--reference-max-batch", "2"]
@@ -18,9 +22,10 @@ def test_json_document():
     doc = json.loads(res.stdout)  # exactly one JSON object on stdout
     assert set(doc) >= {"machine", "rows", "prepare_ms"}
     assert doc["prepare_ms"] > 0 and doc["machine"]["cpu_count"] >= 1
-    assert doc["settings"] == {"backends": ["numba", "reference"], "scales": [4], "batches": [4, 6], "views": 4,
+    assert doc["settings"] == {"backends": AUTO, "scales": [4], "batches": [4, 6], "views": 4,
                                "repeats": 1, "min_time_s": 0.01, "reference_max_batch": 2, "seed": 0}
-    assert {r["backend"] for r in doc["rows"]} == {"numba", "reference"}
+    assert {r["backend"] for r in doc["rows"]} == set(AUTO)
+    assert ("torch" in doc["machine"]) == ("torch" in AUTO)
     for r in doc["rows"]:
         assert set(r) == {"backend", "width", "height", "batch", "evals_per_s", "ratio_to_reference"}
         assert (r["width"], r["height"]) == (161, 121) and r["batch"] in (4, 6) and r["evals_per_s"] > 0

@@ -26,7 +26,8 @@ def _ints(text: str, name: str) -> list[int]:
 @bench_app.command("fitness")
 @fail_on_user_error
 def fitness(
-    backends: str = typer.Option("numba,reference", help="Comma-separated backends; 'reference' gives the ratios."),
+    backends: str = typer.Option("auto", help="Comma-separated backends (numba, torch, reference); 'reference' "
+                                 "gives the ratios. auto: numba, torch where PyTorch is installed, reference."),
     scales: str = typer.Option("1,2,4", help="Downsampling factors of 644x484 (1 full, 2 half, 4 quarter, 8)."),
     batches: str = typer.Option("20,200", help="Batch sizes (poses per call)."),
     views: int = typer.Option(4, help="Number of camera views."),
@@ -40,11 +41,17 @@ def fitness(
     from swarmpose.errors import ConfigError
     from swarmpose.fitness import BACKENDS
     from swarmpose.fitness.bench import run_fitness_benchmark
+    from swarmpose.fitness.torch_backend import _import_torch, torch_available
 
-    names = [b.strip() for b in backends.split(",") if b.strip()]
+    if backends.strip() == "auto":
+        names = ["numba", *(["torch"] if torch_available() else []), "reference"]
+    else:
+        names = [b.strip() for b in backends.split(",") if b.strip()]
     unknown = [b for b in names if b not in BACKENDS]
     if unknown or not names:
         raise ConfigError(f"unknown backend(s) {unknown or backends!r} (known: {', '.join(BACKENDS)})")
+    if "torch" in names:
+        _import_torch()  # the install hint when PyTorch is missing
     if views < 1 or repeats < 1 or min_time < 0 or reference_max_batch < 1:
         raise ConfigError("--views, --repeats and --reference-max-batch must be >= 1, --min-time >= 0")
 
@@ -73,6 +80,8 @@ def fitness(
                   f"numpy {m['numpy']}, "
                   f"OpenCV {m['opencv']}, Python {m['python']}; load average {m['loadavg_start']} -> "
                   f"{m['loadavg_end']}", highlight=False)
+    if "torch" in m:
+        console.print(f"[bold]torch[/bold] {m['torch']} on {m['torch_device']}", highlight=False)
     table = Table(title=f"fitness evaluations/s ({views} views, silhouette + edge, incl. kinematics)")
     for col in ("backend", "resolution", "batch", "evals/s", "x reference", "frames/s at 1000 evals"):
         table.add_column(col, justify="right" if col != "backend" else "left")

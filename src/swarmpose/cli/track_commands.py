@@ -29,7 +29,9 @@ def track(
         "", help="Optimiser variant, as the compare suites use them: budget=B (SPPSO family: iterations x "
                  "B/1000), stage2=PxI, global=PxI, hard, apf=PxL (particles x layers of an APF)."),
     downsample: int = typer.Option(1, help="Image downsampling: 1 (full resolution), 2, 4 or 8 (faster, coarser)."),
-    backend: str = typer.Option("numba", help="Fitness backend: numba (default) or reference."),
+    backend: str = typer.Option(
+        "numba", help="Fitness backend: numba (default, all CPU cores), torch (PyTorch on the GPU when there is "
+                      "one, same results; pip install torch) or reference (plain numpy, slow)."),
     fitness_options: str = typer.Option(
         "", help="Fitness options over each stage's own, key=value[,...]: terms=silhouette (no edge term), "
                  "edge_top=false (no torso top edge), edge_cones=all|torso|torso+upper."),
@@ -63,6 +65,13 @@ def track(
                       downsample=downsample, seed=seed, fitness_options=fitness_options,
                       feature_options=features, optim_variant=variant, motion=motion,
                       max_frames=max_frames)
+    if backend == "torch" and not scheduler:
+        import torch
+
+        if not torch.cuda.is_available():
+            err_console.print("[yellow]note:[/yellow] PyTorch sees no GPU here: the torch backend runs on the CPU, "
+                              "about 50x slower than the default numba backend (it is the GPU path)",
+                              highlight=False)
     client = connect_scheduler(scheduler) if scheduler else None  # a wrong address fails before any synthesis
     progress = not (json_out or no_progress)
     seq = resolve_sequence(source, progress=progress)

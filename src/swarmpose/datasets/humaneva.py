@@ -1293,7 +1293,9 @@ class VideoSource:
         try:
             import imageio.v2 as iio
 
-            self._imageio = iio.get_reader(str(self.path))
+            # FFmpeg only: letting imageio try every plugin on an unreadable file reaches its
+            # deprecated TIFF and DICOM readers
+            self._imageio = iio.get_reader(str(self.path), format="FFMPEG")
             n = self._imageio.count_frames()
             first = self._imageio.get_data(0)
         except Exception as exc:  # imageio raises plugin-specific errors

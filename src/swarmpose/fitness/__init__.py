@@ -33,8 +33,10 @@ Factory
 * ``"reprojection"`` -- :class:`ReprojectionFitness`, robust symmetric reprojection error (points to
   detections and detections to points; the tracker's default for the AAPSO family);
 
-and backends ``"numba"`` (default: fused numba kernels on all cores) and ``"reference"`` (plain
-numpy/OpenCV, slow, used by the tests). A GPU backend is one more entry in
+and, for the image kinds, backends ``"numba"`` (default: fused numba kernels on all cores),
+``"torch"`` (:class:`~swarmpose.fitness.torch_backend.TorchBackend`, the GPU path: the same
+measurements as batched PyTorch tensor code; needs ``pip install torch``) and ``"reference"`` (plain
+numpy/OpenCV, slow, used by the tests). A backend is an entry in
 :data:`swarmpose.fitness.backends.BACKENDS` implementing ``prepare``/``measure``.
 
 Per-frame state
@@ -59,6 +61,9 @@ from swarmpose.fitness.base import (
 )
 from swarmpose.fitness.image import DeutscherReidFitness, ImageFitness, SilhouetteEdgeFitness
 from swarmpose.fitness.markers import MarkerFitness, MarkerFrame, ReprojectionFitness
+from swarmpose.fitness.torch_backend import TorchBackend, torch_available
+
+BACKENDS["torch"] = TorchBackend  # imports torch only when constructed
 
 __all__ = [
     "BACKENDS",
@@ -78,6 +83,7 @@ __all__ = [
     "make_fitness",
     "prepare_frame",
     "silhouette_score",
+    "torch_available",
 ]
 
 #: Fitness kinds known to :func:`make_fitness`.
@@ -96,7 +102,9 @@ def make_fitness(kind: str, model, *, backend: str = "numba", **options: Any) ->
     ----------
     kind : {"silhouette_edge", "deutscher_reid", "markers", "reprojection"}
     model : BodyModel
-    backend : {"numba", "reference"}, default "numba"
+    backend : {"numba", "torch", "reference"}, default "numba"
+        ``"torch"`` for the image kinds only; its settings (``device``, ``dtype``, ``max_elements``) go in
+        ``backend_options``.
     **options :
         Keyword arguments of the class (e.g. ``edge_cones``, ``edge_spacing``, ``a``, ``rho``,
         ``penalty``, ``tau``).

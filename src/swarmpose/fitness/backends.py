@@ -14,6 +14,8 @@ optimisers and the tracker never see it.
   (:func:`swarmpose.fitness._numba.eval_share`) -- with the poses dealt to all cores (threads that
   sleep when idle; numba's ``prange`` is an option). ``cache=True``: compiled once per machine
   (about 30-50 s), about 1 s to load afterwards.
+* ``"torch"`` -- :class:`swarmpose.fitness.torch_backend.TorchBackend` (registered by
+  :mod:`swarmpose.fitness`): the same definitions as batched PyTorch code, the GPU path.
 """
 
 from __future__ import annotations

@@ -177,6 +177,11 @@ def run_fitness_benchmark(
                              "evals_per_s": rates[(b, batch)],
                              "ratio_to_reference": rates[(b, batch)] / ref if ref else None})
     machine["loadavg_end"] = _loadavg()
+    if "torch" in fits:
+        be = fits["torch"].backend
+        machine["torch"] = be.torch.__version__
+        machine["torch_device"] = (be.torch.cuda.get_device_name(be.device) if be.device.type == "cuda"
+                                   else str(be.device))
     try:
         import numba
 

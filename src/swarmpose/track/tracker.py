@@ -23,6 +23,7 @@ import hashlib
 import json
 import os
 import platform
+import sys
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
@@ -109,6 +110,10 @@ class TrackConfig:
         if self.backend not in known:
             raise ConfigError(f"unknown fitness backend {self.backend!r} for the {self.fitness_kind} fitness "
                               f"(known: {', '.join(known)})")
+        if self.backend == "torch":
+            from swarmpose.fitness.torch_backend import _import_torch
+
+            _import_torch()  # the install hint now, not in a worker
         # canonical text, so that "constant-velocity" and "constant-velocity:1" resume each other
         object.__setattr__(self, "motion", str(parse_motion(self.motion)))
 
@@ -164,6 +169,9 @@ def versions() -> dict[str, str]:
     out = {"swarmpose": __version__, "python": platform.python_version(), "numpy": np.__version__,
            "scipy": scipy.__version__, "numba": numba.__version__, "machine": platform.machine(),
            "cpus": str(os.cpu_count())}
+    torch = sys.modules.get("torch")  # loaded by the torch fitness backend
+    if torch is not None:
+        out["torch"] = torch.__version__
     rev = source_revision()
     if rev:
         out["swarmpose_git"] = rev
