@@ -41,7 +41,7 @@ def fitness(
     from swarmpose.errors import ConfigError
     from swarmpose.fitness import BACKENDS
     from swarmpose.fitness.bench import run_fitness_benchmark
-    from swarmpose.fitness.torch_backend import _import_torch, torch_available
+    from swarmpose.fitness.torch_backend import import_torch, torch_available
 
     if backends.strip() == "auto":
         names = ["numba", *(["torch"] if torch_available() else []), "reference"]
@@ -51,7 +51,7 @@ def fitness(
     if unknown or not names:
         raise ConfigError(f"unknown backend(s) {unknown or backends!r} (known: {', '.join(BACKENDS)})")
     if "torch" in names:
-        _import_torch()  # the install hint when PyTorch is missing
+        import_torch()  # the install hint when PyTorch is missing
     if views < 1 or repeats < 1 or min_time < 0 or reference_max_batch < 1:
         raise ConfigError("--views, --repeats and --reference-max-batch must be >= 1, --min-time >= 0")
 

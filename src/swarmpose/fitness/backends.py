@@ -172,6 +172,13 @@ class Measurements:
     region_sq: np.ndarray
     region_count: np.ndarray
 
+    @classmethod
+    def from_arrays(cls, counts: np.ndarray, sums: np.ndarray) -> Measurements:
+        """From a kernel's ``counts (N, C, 2)`` (``Y``, ``P``) and ``sums (N, C, 5)`` (edge sum, edge
+        SSD, edge count, region SSD, region count)."""
+        return cls(overlap=counts[..., 0], projected=counts[..., 1], edge_sum=sums[..., 0], edge_sq=sums[..., 1],
+                   edge_count=sums[..., 2], region_sq=sums[..., 3], region_count=sums[..., 4])
+
 
 class ImageBackend(Protocol):
     """What a backend implements. Constructed with ``(model, *, n_rim, near)``."""
@@ -319,9 +326,7 @@ class NumbaBackend(_BackendBase):
             work()
             for f in futures:
                 f.result()
-        return Measurements(overlap=counts[..., 0], projected=counts[..., 1], edge_sum=sums[..., 0],
-                            edge_sq=sums[..., 1], edge_count=sums[..., 2], region_sq=sums[..., 3],
-                            region_count=sums[..., 4])
+        return Measurements.from_arrays(counts, sums)
 
 
 def _empty(N: int, C: int) -> Measurements:

@@ -37,7 +37,7 @@ from swarmpose.features import FrameFeatures
 from swarmpose.fitness.backends import Measurements, PreparedFrame, Request, _BackendBase, prepare_frame
 from swarmpose.render.project import DEFAULT_N_RIM, DEFAULT_NEAR_MM
 
-__all__ = ["TorchBackend", "torch_available"]
+__all__ = ["TorchBackend", "torch_available", "import_torch"]
 
 _ANGLE_EPS = 1e-9  # as swarmpose.render._kernels
 _INSTALL = "pip install torch==2.13.0 (or another build for your GPU: https://pytorch.org/get-started)"
@@ -52,7 +52,8 @@ def torch_available() -> bool:
     return True
 
 
-def _import_torch():
+def import_torch():
+    """``import torch``, or a :class:`ConfigError` with the install line."""
     try:
         import torch
     except ImportError:
@@ -86,7 +87,7 @@ class TorchBackend(_BackendBase):
 
     def __init__(self, model, *, n_rim: int = DEFAULT_N_RIM, near: float = DEFAULT_NEAR_MM,
                  device: str | None = None, dtype: str = "float64", max_elements: int | None = None):
-        torch = _import_torch()
+        torch = import_torch()
         super().__init__(model, n_rim=n_rim, near=near)
         self.torch = torch
         dtypes = {"float64": torch.float64, "float32": torch.float32}
@@ -168,7 +169,7 @@ class TorchBackend(_BackendBase):
         counts = np.zeros((N, C, 2), np.int64)
         sums = np.zeros((N, C, 5))
         if N == 0:
-            return _measurements(counts, sums)
+            return Measurements.from_arrays(counts, sums)
         with torch.no_grad():
             pt = self._tensor(p)
             step = max(1, self.max_elements // (C * len(self.cones.names) * (2 * self.n_rim + 4) * 4))
@@ -179,7 +180,7 @@ class TorchBackend(_BackendBase):
                 c_out, s_out = self._measure_chunk(ft, prepared, {k: v[sel] for k, v in geo.items()}, request)
                 counts[idx] = c_out
                 sums[idx] = s_out
-        return _measurements(counts, sums)
+        return Measurements.from_arrays(counts, sums)
 
     def _pose_costs(self, geo: dict, prep: PreparedFrame, request: Request) -> np.ndarray:
         """``(N,)`` elements of each pose's largest intermediate tensor in :meth:`_measure_chunk`: row
@@ -191,7 +192,8 @@ class TorchBackend(_BackendBase):
         spacing = float(request.edge_spacing)
         if request.edge:
             use = geo["tangent"] & self._mask(request)
-            cost = torch.maximum(cost, C * K * 2 * K * self._line_counts(geo, use, spacing).amax((1, 2, 3)))
+            n_line = self._line_counts(*self._line_ends(geo), use, spacing)
+            cost = torch.maximum(cost, C * K * 2 * K * n_line.amax((1, 2, 3)))
             if request.top_cone >= 0:
                 n_arc = self._arc_geometry(geo, int(request.top_cone), spacing)[-1]
                 cost = torch.maximum(cost, C * K * P * n_arc.amax(1))
@@ -459,9 +461,9 @@ class TorchBackend(_BackendBase):
         q0 = torch.stack([pq[..., n_rim + 2, :], pq[..., P - 1, :]], -2)
         return p0, q0
 
-    def _line_counts(self, geo: dict, use, spacing: float):
-        """Samples per silhouette line ``(N, C, K, 2)``, 0 for the cones not in ``use``."""
-        p0, q0 = self._line_ends(geo)
+    def _line_counts(self, p0, q0, use, spacing: float):
+        """Samples per silhouette line ``(N, C, K, 2)`` (ends from :meth:`_line_ends`), 0 for the cones
+        not in ``use``."""
         n = _n_samples(self.torch, self.torch.linalg.vector_norm(q0[..., :2] - p0[..., :2], dim=-1), spacing)
         return self.torch.where(use[..., None], n, 0)
 
@@ -477,7 +479,7 @@ class TorchBackend(_BackendBase):
         K = valid.shape[-1]
         p0, q0 = self._line_ends(geo)
         d = q0 - p0
-        n = self._line_counts(geo, use, spacing)
+        n = self._line_counts(p0, q0, use, spacing)
         S = int(n.max())
         i = torch.arange(S, device=self.device)
         t = (i + 0.5) / n.clamp(min=1)[..., None].to(self.dtype)  # (N, C, K, 2, S)
@@ -574,12 +576,12 @@ class TorchBackend(_BackendBase):
         """Interior grid size ``(nt, ns)``, each ``(N, C, K)``, of the cones with silhouette lines (0
         elsewhere): ``nt`` along the projected axis, ``ns`` across the wider end."""
         torch = self.torch
-        uv, tangent = geo["uv"], geo["tangent"]
-        n_rim, P = self.n_rim, uv.shape[3]
+        tangent = geo["tangent"]
+        p, q = self._line_ends(geo)  # (N, C, K, side, 3): start-cap and end-cap ends of both lines
         ax = geo["axis"][..., :2]
         nt = _n_samples(torch, torch.linalg.vector_norm(ax[..., 1, :] - ax[..., 0, :], dim=-1), spacing)
-        width = torch.maximum(torch.linalg.vector_norm(uv[..., 0, :] - uv[..., n_rim + 1, :], dim=-1),
-                              torch.linalg.vector_norm(uv[..., P - 1, :] - uv[..., n_rim + 2, :], dim=-1))
+        width = torch.maximum(torch.linalg.vector_norm(p[..., 1, :2] - p[..., 0, :2], dim=-1),
+                              torch.linalg.vector_norm(q[..., 1, :2] - q[..., 0, :2], dim=-1))
         ns = _n_samples(torch, width, spacing)
         return torch.where(tangent, nt, 0), torch.where(tangent, ns, 0)
 
@@ -588,15 +590,15 @@ class TorchBackend(_BackendBase):
         grid (:func:`swarmpose.render.reference.region_samples_reference`)."""
         torch = self.torch
         uv, valid, tangent = geo["uv"], geo["valid"], geo["tangent"]
-        N, C, K, P = uv.shape[:4]
+        N, C, K = uv.shape[:3]
         n_rim = self.n_rim
         W, H = prep.width, prep.height
         sil = ft["sil"]
         sq = torch.zeros((N, C), dtype=self.dtype, device=self.device)
         cnt = torch.zeros((N, C), dtype=self.dtype, device=self.device)
         if bool(tangent.any()):
-            p0, q0 = uv[..., n_rim + 1, :], uv[..., n_rim + 2, :]
-            p1, q1 = uv[..., 0, :], uv[..., P - 1, :]
+            p, q = self._line_ends(geo)
+            p0, q0, p1, q1 = p[..., 0, :2], q[..., 0, :2], p[..., 1, :2], q[..., 1, :2]
             nt, ns = self._region_counts(geo, spacing)
             T, S = int(nt.max()), int(ns.max())
             it = torch.arange(T, device=self.device)
@@ -692,9 +694,3 @@ def _pixel_values(torch, img_flat, x, y, W: int, H: int):
     view = torch.arange(C, device=x.device)[None, :, None]
     idx = torch.where(ok, (view * H + yi.long().clamp(0, H - 1)) * W + xi.long().clamp(0, W - 1), 0)
     return torch.where(ok, img_flat[idx], 0.0)
-
-
-def _measurements(counts: np.ndarray, sums: np.ndarray) -> Measurements:
-    return Measurements(overlap=counts[..., 0], projected=counts[..., 1], edge_sum=sums[..., 0],
-                        edge_sq=sums[..., 1], edge_count=sums[..., 2], region_sq=sums[..., 3],
-                        region_count=sums[..., 4])

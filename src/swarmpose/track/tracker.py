@@ -111,9 +111,9 @@ class TrackConfig:
             raise ConfigError(f"unknown fitness backend {self.backend!r} for the {self.fitness_kind} fitness "
                               f"(known: {', '.join(known)})")
         if self.backend == "torch":
-            from swarmpose.fitness.torch_backend import _import_torch
+            from swarmpose.fitness.torch_backend import import_torch
 
-            _import_torch()  # the install hint now, not in a worker
+            import_torch()  # the install hint now, not in a worker
         # canonical text, so that "constant-velocity" and "constant-velocity:1" resume each other
         object.__setattr__(self, "motion", str(parse_motion(self.motion)))
 
