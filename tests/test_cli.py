@@ -24,6 +24,8 @@ def test_ik_reports_the_file_it_wrote(mocap_dir: Path, tmp_path: Path):
     assert json.loads(out.stdout)["out"] == str(tmp_path / "fit.npz") and (tmp_path / "fit.npz").is_file()
     bad = CliRunner().invoke(app, ["ik", str(clip), "--out", str(tmp_path)])
     assert bad.exit_code == 2 and "is a folder" in " ".join(bad.output.split())
+    bad = CliRunner().invoke(app, ["ik", str(clip), "--out", str(tmp_path / "new") + "/"])  # a folder meant
+    assert bad.exit_code == 2 and "is a folder" in " ".join(bad.output.split()) and not (tmp_path / "new").exists()
 
 
 def test_help_keeps_the_bracketed_forms():
@@ -82,6 +84,8 @@ def test_info_and_ik_read_an_exported_file(mocap_dir: Path, tmp_path: Path):
     assert json.loads(ik.stdout)["ik_floor_mm"]["mean"] < 0.5  # the model fits its own motion (0.11 mm: the IK's rest prior)
     cmu = json.loads(runner.invoke(app, ["info", str(mocap_dir / "cmu_16_35_jog.bvh"), "--json"]).stdout)
     assert cmu["skeleton"] == "cmu"
+    assert cmu["joints15"]["head_top"]["bvh_joint"] == "Head (end site)"  # the point is the Head's end site
+    assert cmu["joints15"]["l_knee"]["bvh_joint"] == "LeftLeg"
 
 
 def test_usage_errors_under_json_print_one_error_object():

@@ -79,6 +79,17 @@ def test_edge_map():
         edge_map(frame, sil, sigma_px=0.0)
 
 
+@pytest.mark.parametrize(("presmooth", "fires_above"), [(True, 40.0 * 4 / 3), (False, 40.0)])
+def test_edge_threshold_in_grey_levels(presmooth, fires_above):
+    """An ideal vertical step of height h: L1 Sobel magnitude 4h raw, 3h after the 3x3 pre-smoothing,
+    against ``4 * threshold``; the default 40 keeps steps above 53 grey levels (40 raw)."""
+    sil = np.ones((40, 40), np.uint8)
+    for h, fires in ((int(np.floor(fires_above)) - 1, False), (int(np.floor(fires_above)) + 1, True)):
+        img = np.full((40, 40), 100, np.uint8)
+        img[:, 20:] += h
+        assert bool(edge_map(img, sil, presmooth=presmooth).max() > 0) is fires, (h, presmooth)
+
+
 def _cams(n: int = 2) -> list[Camera]:
     return [Camera.look_at(f"c{i}", eye=(4000.0 * np.cos(i), 4000.0 * np.sin(i), 1500.0), target=(0, 0, 900))
             for i in range(n)]

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
 from he_fixtures import Fixture
 from typer.testing import CliRunner
 
@@ -17,6 +18,8 @@ def test_track_accepts_humaneva_sources(he1: Fixture, tmp_path):
     assert res.exit_code == 0, res.output
     data = json.loads(res.stdout.strip().splitlines()[-1])
     assert data["algo"] == "apf" and data["frames"] >= 2
+    with np.load(out / "run_000" / "joints.npz", allow_pickle=False) as z:  # frames with valid ground truth
+        assert data["frames_scored"] == int(np.isfinite(z["gt_joints"]).all(axis=(1, 2)).sum()) >= 1
     assert data["d_mean_mm"] >= 0.0 and data["ik_floor_mm"] >= 0.0
     # the subject was measured from the 15-joint ground truth (no BVH skeleton for HumanEva)
     subject = json.loads((out / "subject.json").read_text())

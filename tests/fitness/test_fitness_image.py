@@ -12,7 +12,7 @@ from swarmpose.fitness import (
     KINDS,
     Fitness,
     PreparedFrame,
-    deutscher_reid_weight,
+    deutscher_reid_log_weight,
     edge_score,
     make_fitness,
     prepare_frame,
@@ -96,7 +96,7 @@ def test_deutscher_reid_matches_reference(model, scene, candidates, options):
     np.testing.assert_allclose(a.edge_sq, b.edge_sq, atol=1e-9)
     wa, wb = fast.evaluate(poses, options), ref.evaluate(poses, options)
     np.testing.assert_allclose(wa, wb, rtol=1e-9)
-    assert ((wa > 0) & (wa <= 1)).all()
+    assert ((wa <= 0) & (wa >= -2 * len(scene.cameras))).all()  # log w, each view's SSDs at most 1 + 1
 
 
 def test_truth_beats_perturbations(model, true_pose, scene):
@@ -139,7 +139,7 @@ def test_degenerate_frames(model, rig, true_pose):
         np.testing.assert_array_equal(fs[1], 1.0)  # both empty: identical silhouettes
         np.testing.assert_array_equal(fe[:2], 0.0)
         w = make_fitness("deutscher_reid", model, backend=backend).bind(empty)(poses)
-        assert np.isfinite(w).all() and (w > 0).all()
+        assert np.isfinite(w).all() and (w <= 0).all()  # log-weights
     full = demo_frame(model, true_pose, rig, inflate=1.0, clutter=0, noise=0.0)
     fs, fe = make_fitness("silhouette_edge", model).bind(full).terms(poses)
     np.testing.assert_array_equal(fs[1], 0.0)  # nothing drawn, something observed
@@ -196,9 +196,9 @@ def test_silhouette_score_is_eq_5_5():
     np.testing.assert_array_equal(silhouette_score([[0, 0]], [[0, 5]], [0, 0]), [[1.0, 0.0]])
     np.testing.assert_array_equal(silhouette_score([[0]], [[0]], [7]), [[0.0]])
     np.testing.assert_allclose(edge_score([[3.0, 0.0]], [[4.0, 0.0]]), [[0.75, 0.0]])
-    w = deutscher_reid_weight(np.array([[1.0, 0.0]]), np.array([[4.0, 0.0]]), np.array([[2.0, 0.0]]),
+    w = deutscher_reid_log_weight(np.array([[1.0, 0.0]]), np.array([[4.0, 0.0]]), np.array([[2.0, 0.0]]),
                               np.array([[8.0, 2.0]]))
-    np.testing.assert_allclose(w, np.exp(-(0.25 + 1.0 + 0.25 + 0.0)))
+    np.testing.assert_allclose(w, -(0.25 + 1.0 + 0.25 + 0.0))
 
 
 # --------------------------------------------------------------------------- on a synthesised walk

@@ -30,11 +30,11 @@ def test_symmetric_epipolar_distance(rig, model, true_pose):
     assert (d > 0.1).all()
 
 
-def test_true_pose_scores_one(model, true_pose, rig, detections):
+def test_true_pose_scores_weight_one(model, true_pose, rig, detections):
     for backend in ("numba", "reference"):
         fit = make_fitness("markers", model, backend=backend).bind(MarkerFrame(detections, rig))
         w = fit(true_pose[None])
-        assert w[0] == pytest.approx(1.0, abs=1e-5)
+        assert w[0] == pytest.approx(0.0, abs=1e-5)  # log w: w = 1
 
 
 def test_seen_point_beats_displaced_point(model, true_pose, rig, detections):
@@ -45,7 +45,7 @@ def test_seen_point_beats_displaced_point(model, true_pose, rig, detections):
     assert s[0].max() < 1e-3
     np.testing.assert_allclose(s[1], math.sqrt(6) * 200.0)  # all 6 view pairs penalised
     w = fit(np.stack([true_pose, moved]))
-    assert w[0] > w[1] > 0.0
+    assert 0.0 >= w[0] > w[1] == pytest.approx(-math.sqrt(6) * 200.0)
 
 
 def test_missing_detection_gets_the_penalty(model, true_pose, rig, detections):
@@ -57,7 +57,7 @@ def test_missing_detection_gets_the_penalty(model, true_pose, rig, detections):
     s = fit.point_scores(true_pose[None])[0]
     assert s[m] == pytest.approx(math.sqrt(3) * 200.0)  # pairs (1,3), (2,3), (3,4) get 200 each
     assert np.delete(s, m).max() < 1e-3
-    assert fit(true_pose[None])[0] == pytest.approx(math.exp(-s.mean()))
+    assert fit(true_pose[None])[0] == pytest.approx(-s.mean())  # log w of eq. 12
     ref = MarkerFitness(model, backend="reference").bind(MarkerFrame(dets, rig))
     assert ref(true_pose[None])[0] == pytest.approx(fit(true_pose[None])[0], rel=1e-9)
 
@@ -72,7 +72,7 @@ def test_backends_agree_on_noisy_detections(model, true_pose, rig, detections):
         a = make_fitness(kind, model).bind(frame)(poses)
         b = make_fitness(kind, model, backend="reference").bind(frame)(poses)
         np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-300)
-        assert np.isfinite(a).all() and (a > 0).all() and (a <= 1).all()
+        assert np.isfinite(a).all() and (a <= 0).all()  # log-weights: w in (0, 1]
     a = ReprojectionFitness(model, symmetric=False).bind(frame)(poses)
     b = ReprojectionFitness(model, symmetric=False, backend="reference").bind(frame)(poses)
     np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-300)
@@ -86,13 +86,13 @@ def test_reprojection_explains_every_detection(model, true_pose, rig, detections
     frame = MarkerFrame(dets, rig)
     one_sided = ReprojectionFitness(model, symmetric=False).bind(frame)
     symmetric = ReprojectionFitness(model).bind(frame)
-    assert one_sided(true_pose[None])[0] == pytest.approx(1.0)
+    assert one_sided(true_pose[None])[0] == pytest.approx(0.0, abs=1e-9)
     w = symmetric(true_pose[None])[0]
     e = np.array([np.linalg.norm(cam.project(X) - cam.project(extra[None]), axis=1).min() for cam in rig])
     n_terms = 15 * len(rig) + 16 * len(rig)  # model points + detections (15 true + 1 extra) per view
-    expected = math.exp(-np.log1p((np.minimum(e, 50.0) / 5.0) ** 2).sum() / n_terms)
+    expected = -np.log1p((np.minimum(e, 50.0) / 5.0) ** 2).sum() / n_terms
     assert w == pytest.approx(expected, rel=1e-9)
-    assert w < 1.0
+    assert w < 0.0
 
 
 def test_reprojection_is_smooth_and_bounded(model, true_pose, rig, detections):
@@ -101,10 +101,10 @@ def test_reprojection_is_smooth_and_bounded(model, true_pose, rig, detections):
     poses = np.repeat(true_pose[None], len(shifts), axis=0)
     poses[:, 4] += shifts  # mm sideways
     w = fit(poses)
-    assert w[0] == pytest.approx(1.0)
+    assert w[0] == pytest.approx(0.0, abs=1e-9)
     assert (np.diff(w) < 0).all()
     empty = ReprojectionFitness(model).bind(MarkerFrame([np.zeros((0, 2))] * len(rig), rig))
-    assert empty(true_pose[None])[0] == pytest.approx(math.exp(-math.log1p((50.0 / 5.0) ** 2)))
+    assert empty(true_pose[None])[0] == pytest.approx(-math.log1p((50.0 / 5.0) ** 2))
 
 
 def test_exception(model, rig, detections, true_pose):

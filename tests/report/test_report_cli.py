@@ -64,10 +64,13 @@ def test_export_json_round_trip(fake_results, tmp_path: Path):
     bad = CliRunner().invoke(app, ["export", str(fake_results[0]), "--out", str(bvh), "--rest-facing", "up"])
     assert bad.exit_code == 2 and "--rest-facing must be one of +z, +x" in " ".join(bad.output.split())
     assert data["resampled"] is False and data["tracked_frames"] == 6  # evenly spaced frames are kept
-    zup = CliRunner().invoke(app, ["export", str(fake_results[0]), "--out", str(bvh), "--z-up", "--json"])
+    again = CliRunner().invoke(app, ["export", str(fake_results[0]), "--out", str(bvh), "--z-up", "--json"])
+    assert again.exit_code == 2 and "exists; add --force" in json.loads(again.stdout)["error"]
+    assert read_bvh(bvh).frames == 6  # untouched
+    zup = CliRunner().invoke(app, ["export", str(fake_results[0]), "--out", str(bvh), "--z-up", "--force", "--json"])
     assert zup.exit_code == 0 and json.loads(zup.stdout)["rest_facing"] == "+x"
     clash = CliRunner().invoke(app, ["export", str(fake_results[0]), "--out", str(bvh), "--z-up", "--rest-facing",
-                                     "+z", "--json"])
+                                     "+z", "--force", "--json"])
     assert clash.exit_code == 2 and "Y-up" in json.loads(clash.stdout)["error"]
 
 
@@ -80,6 +83,9 @@ def test_output_paths_a_user_gets_wrong_are_handled(fake_results, tmp_path: Path
     out = CliRunner().invoke(app, ["export", str(res), "--out", str(folder), "--json"])
     assert out.exit_code == 0, out.output
     assert json.loads(out.stdout)["bvh"] == str(folder / "res_run000.bvh") and (folder / "res_run000.bvh").is_file()
+    new = CliRunner().invoke(app, ["export", str(res), "--out", str(tmp_path / "new") + "/", "--json"])
+    assert new.exit_code == 0 and json.loads(new.stdout)["bvh"] == str(tmp_path / "new" / "res_run000.bvh")
+    assert (tmp_path / "new" / "res_run000.bvh").is_file()  # a folder named with a trailing slash is made
     a_file = folder / "res_run000.bvh"
     bad = CliRunner().invoke(app, ["report", str(res), "--out", str(a_file)])
     assert bad.exit_code == 2 and "is a file" in " ".join(bad.output.split())
@@ -114,6 +120,9 @@ def test_report_with_frames_without_ground_truth(results_builder, tmp_path: Path
     assert len(data["overlays"]) == 6 and len(data["figures"]) == 2
     md = Path(data["summary"]).read_text()
     assert " nan" not in md.lower() and "| nan" not in md.lower()
+    frames_row = next(line for line in md.splitlines() if line.startswith("| frames"))
+    n = len(load_results(res_dir).frame_indices)
+    assert f"; {n - 1} scored (the others lack valid ground truth)" in frames_row
     ik_row = next(line for line in md.splitlines() if line.startswith("| IK floor"))
     assert "100.0" in ik_row and ik_row.count("–") == 2  # MMTA over the scored frames; MMTP, frames/s: none
     per_joint = [line for line in md.splitlines() if line.startswith("| pelvis")]

@@ -52,6 +52,19 @@ def test_a_second_report_in_the_same_folder_leaves_no_stale_overlays(results_cop
     assert other.read_text() == "mine"  # only the report's own pictures are replaced
 
 
+def test_a_report_for_a_missing_run_leaves_the_previous_report_alone(results_copy: Path):
+    from swarmpose.errors import DataError
+
+    first = make_report(results_copy, overlay_frames=2)
+    before = {p: p.stat().st_mtime_ns for p in (results_copy / "report").rglob("*") if p.is_file()}
+    with pytest.raises(DataError, match="no finished run 5"):
+        make_report(results_copy, overlay_frames=2, run=5)
+    with pytest.raises(DataError, match="no finished run 5"):  # also when the overlays would be skipped
+        make_report(results_copy, overlay_frames=0, video=False, run=5)
+    after = {p: p.stat().st_mtime_ns for p in (results_copy / "report").rglob("*") if p.is_file()}
+    assert after == before and all(p.is_file() for p in first.overlays)
+
+
 def test_summary_has_the_numbers(results_copy: Path):
     s = json.loads((results_copy / "summary.json").read_text())
     md = write_summary(results_copy).read_text()

@@ -50,6 +50,7 @@ def test_sequence_loads_back(short_walk: SynthReport, walk_clip):
         np.testing.assert_allclose(seq.frame_times, np.arange(SHORT_FRAMES) / 60.0)
         np.testing.assert_array_equal(seq.world_from_source, walk_clip.world_from_source)
         assert seq.provenance["seed"] == 3 and seq.provenance["clip"]["name"] == "cmu_16_16_walk"
+        assert seq.provenance["clip"]["source_frame_rate"] == 120.0  # the capture rate, not the 60 fps rendered
         assert seq.provenance["settings"]["markers"]["dropout"] == 0.05
         assert short_walk.measurements is not None and seq.subject_measurements == short_walk.measurements
         img, mask = seq.images(5), seq.masks(5)

@@ -444,7 +444,7 @@ def test_max_frames_tracks_the_first_frames_only_and_is_part_of_the_settings(sho
                                    "--workers", "1", "--json"])
     assert res.exit_code == 0, res.output
     data = json.loads(res.stdout)
-    assert data["frames"] == 3
+    assert data["frames"] == 3 and data["frames_scored"] == 3
     out = tmp_path / "results" / f"{short_sequence.name}-sppso-60fps-3frames"  # not the full run's folder
     with np.load(out / "run_000" / "joints.npz", allow_pickle=False) as z:
         assert z["joints"].shape == (3, 15, 3) and z["frame_times"] == pytest.approx([0, 1 / 60, 2 / 60])
@@ -504,3 +504,15 @@ def test_a_suite_end_to_end_writes_its_comparison(short_sequence, tmp_path, monk
     again = CliRunner().invoke(app, [*args, "--resume"])
     assert again.exit_code == 0, again.output
     assert [r["d_mean_mm"] for r in json.loads(again.stdout)["rows"]] == [r["d_mean_mm"] for r in report["rows"]]
+
+
+def test_the_default_results_folder_names_every_setting_that_changes_the_results():
+    """Another seed, resolution or setting gets its own folder, not one it would be told to --resume."""
+    from swarmpose.cli.track_commands import default_results_name
+
+    assert default_results_name("walk", TrackConfig(algo="sppso", fps=20.0)) == "walk-sppso-20fps"
+    name = default_results_name("walk", TrackConfig(algo="sppso", fps=25.0, seed=3, downsample=2, max_frames=30,
+                                                    fitness="deutscher_reid", optim_variant="budget=2000",
+                                                    fitness_options="terms=silhouette", motion="constant-velocity:0.5"))
+    assert name == "walk-sppso-25fps-30frames-s3-ds2-deutscher_reid-budget_2000-terms_silhouette-constant-velocity_0.5"
+    assert default_results_name("walk", TrackConfig(model="full45")) != default_results_name("walk", TrackConfig())

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 
@@ -48,7 +49,8 @@ def info(
         "mm_per_unit": float(c.mm_per_unit),
         "skeleton": c.skeleton_map.style,
         "joints15": {
-            name: {"bvh_joint": bvh.joints[c.skeleton_map.joint_index[i]].name,
+            name: {"bvh_joint": bvh.joints[c.skeleton_map.joint_index[i]].name
+                   + (" (end site)" if c.skeleton_map.from_end_site[i] else ""),
                    "start_mm": [round(float(v), 1) for v in j15[0, i]]}
             for i, name in enumerate(JOINTS15)
         },
@@ -119,7 +121,7 @@ def ik(
     clip: Path = typer.Argument(..., help="A BVH motion-capture file."),
     model: str = typer.Option("balan31", help="Body model: a shipped name (balan31, full45) or a spec file."),
     fps: float = typer.Option(60.0, help="Frame rate to resample the clip to before fitting."),
-    out: Path = typer.Option(None, help="Write the fitted parameters, joints and errors here (.npz)."),
+    out: str = typer.Option(None, help="Write the fitted parameters, joints and errors here (.npz)."),
     unit: str = typer.Option(None, help="Source unit or mm per unit; inferred if omitted."),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object instead of a summary."),
 ) -> None:
@@ -138,7 +140,7 @@ def ik(
     from swarmpose.io.mocap import load_clip
     from swarmpose.joints import JOINTS15
 
-    if out is not None and Path(out).is_dir():  # before the fit, which takes a while
+    if out is not None and (out.endswith(("/", os.sep)) or Path(out).is_dir()):  # before the fit, which takes a while
         from swarmpose.errors import ConfigError
 
         raise ConfigError(f"--out {out} is a folder; give the .npz file to write, "

@@ -3,6 +3,7 @@ the tracked motion as BVH."""
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 from typing import Annotated
 
@@ -106,8 +107,8 @@ def _report_comparison(folder: Path, *, json_out: bool, given: dict[str, bool]) 
 @fail_on_user_error
 def export(
     results_dir: Annotated[Path, typer.Argument(help="A results folder written by `swarmpose track`.")],
-    out: Annotated[Path, typer.Option("--out", help="The BVH file to write (or a folder: "
-                                                    "<results folder>_runXXX.bvh in it).")],
+    out: Annotated[str, typer.Option("--out", help="The BVH file to write (or a folder, existing or ending in "
+                                                   "/: <results folder>_runXXX.bvh in it).")],
     run: Annotated[int, typer.Option("--run", min=0, help="Which run to export.")] = 0,
     z_up: Annotated[bool, typer.Option("--z-up", help="Keep the world's Z-up axes (default: Y up, "
                                                       "(x, z, -y)); `swarmpose info` and `ik` do not read "
@@ -124,6 +125,7 @@ def export(
                                            "spaced (25 fps from a 60 fps sequence: 33 and 50 ms), interpolate "
                                            "the poses onto an even 1/fps clock (BVH has one frame time); "
                                            "--no-resample writes the tracked frames as they are.")] = True,
+    force: Annotated[bool, typer.Option("--force", help="Overwrite the --out file when it exists.")] = False,
     json_out: Annotated[bool, typer.Option("--json", help="Print one JSON object instead of a line.")] = False,
 ) -> None:
     """Export a run's tracked motion as a BVH file that animation tools (Blender, MotionBuilder) import.
@@ -149,8 +151,12 @@ def export(
     rest_facing = (rest_facing or ("+x" if z_up else "+z")).lower()
     res = load_results(results_dir)
     r = res.run(run)
-    if out.is_dir():  # a folder: the file goes into it
+    folder = out.endswith(("/", os.sep)) or Path(out).is_dir()
+    out = Path(out)
+    if folder:  # the file goes into it
         out = out / f"{Path(results_dir).resolve().name}_run{run:03d}.bvh"
+    if out.exists() and not force:  # a mistyped --out must not clobber a source clip
+        raise ConfigError(f"--out {out} exists; add --force to overwrite it")
     fps = res.fps
     if not fps > 0:
         raise ConfigError(f"{results_dir / 'config.json'}: no tracking frame rate ('fps') recorded")

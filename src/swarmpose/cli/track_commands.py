@@ -3,11 +3,36 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import typer
 
 from swarmpose.cli.app import app
 from swarmpose.cli.common import console, err_console, escape, fail_on_user_error, print_json
+
+if TYPE_CHECKING:
+    from swarmpose.track.tracker import TrackConfig
+
+
+def default_results_name(name: str, cfg: TrackConfig) -> str:
+    """``<sequence>-<algo>-<fps>fps`` and every setting that changes the results and is not the default
+    (``-30frames-s1-ds2-markers-hard``...), so that another seed or setting is not taken for a run to resume."""
+    from swarmpose.experiments.run import _slug
+
+    parts = [name, cfg.algo, f"{cfg.fps:g}fps"]
+    if cfg.max_frames is not None:
+        parts.append(f"{cfg.max_frames}frames")
+    if cfg.seed:
+        parts.append(f"s{cfg.seed}")
+    if cfg.downsample != 1:
+        parts.append(f"ds{cfg.downsample}")
+    if cfg.model != "balan31":
+        parts.append(_slug(Path(cfg.model).stem))
+    for value, default in ((cfg.fitness, "auto"), (cfg.optim_variant, ""), (cfg.fitness_options, ""),
+                           (cfg.feature_options, ""), (cfg.motion, "zero-velocity")):
+        if value and value != default:
+            parts.append(_slug(str(value)))
+    return "-".join(parts)
 
 
 @app.command()
@@ -36,7 +61,8 @@ def track(
         "", help="Fitness options over each stage's own, key=value[,...]: terms=silhouette (no edge term), "
                  "edge_top=false (no torso top edge), edge_cones=all|torso|torso+upper."),
     features: str = typer.Option(
-        "", help="Image feature settings, key=value[,...]: edge_threshold (grey-level step, default 40), "
+        "", help="Image feature settings, key=value[,...]: edge_threshold (Sobel magnitude / 4, default 40: "
+                 "keeps grey-level steps above 53 after the pre-smoothing), "
                  "edge_dilate_px, edge_sigma_px, silhouette_threshold (default 25), silhouette_blur_px, "
                  "silhouette_open_px, silhouette_close_px."),
     motion: str = typer.Option(
@@ -82,7 +108,7 @@ def track(
             name = dataset_sequence_name(seq)
         else:
             name = seq.name
-        out = Path("results") / f"{name}-{algo}-{fps:g}fps{'' if max_frames is None else f'-{max_frames}frames'}"
+        out = Path("results") / default_results_name(name, cfg)
     summary = track_runs(seq, cfg, runs, out, resume=resume, workers=workers, scheduler=client,
                          progress=progress)
     if max_frames is not None and summary["frames"] < max_frames:
@@ -100,9 +126,15 @@ def track(
     name = seq.name if isinstance(seq, Path) else str(seq)
     console.print(f"[bold]{algo}[/bold] on {escape(name)} at {fps:g} fps, {runs} run(s), "
                   f"{summary['evals_per_frame']} evaluations per frame ({summary['fitness']} fitness)")
+    over = []
+    if runs > 1:
+        over.append(f"means over the {runs} runs")
+    if summary["frames_scored"] < summary["frames"]:
+        over.append(f"over the {summary['frames_scored']} of {summary['frames']} frames with valid ground truth")
     console.print(f"  D_mean {summary['d_mean_mm']:.1f} mm, D_max {summary['d_max_mm']:.1f} mm "
                   f"(IK floor {summary['ik_floor_mm']:.1f} mm); MMTA {100 * summary['mmta']:.1f} %; "
-                  f"{summary['frames_per_s']:.2f} frames/s")
+                  f"{summary['frames_per_s']:.2f} frames/s" + (f"  ({'; '.join(over)})" if over else ""),
+                  highlight=False)
     if runs > 1:
         w = summary["worst"]
         console.print(f"  worst run {w['run']}: D_mean {w['d_mean_mm']:.1f} mm, D_max {w['d_max_mm']:.1f} mm")

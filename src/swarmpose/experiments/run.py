@@ -11,6 +11,7 @@ import numpy as np
 
 from swarmpose.errors import ConfigError
 from swarmpose.experiments.suites import Entry, suite
+from swarmpose.io.lock import folder_lock
 from swarmpose.metrics import aggregate_runs
 from swarmpose.report.comparison import write_comparison
 from swarmpose.track.runner import (
@@ -66,8 +67,6 @@ def run_suite(name: str, sequences: list[Path], out_dir: Path, *, runs: int = 5,
     (:func:`swarmpose.report.comparison.write_comparison`: ``comparison.md``, two figures, ``comparison.html``)."""
     configs = suite_configs(name, seed=seed, downsample=downsample, max_frames=max_frames)
     out_dir = Path(out_dir)
-    jobs: list[Job] = []
-    cells: list[tuple[Entry, Path, Path, Any]] = []
     planned: dict[Path, tuple[Any, Entry, TrackConfig]] = {}
     for seq in sequences:  # every cell checked before any is written
         for e, cfg in configs:
@@ -77,10 +76,19 @@ def run_suite(name: str, sequences: list[Path], out_dir: Path, *, runs: int = 5,
                                   f"{seq} (give clips with different names)")
             check_results_folder(cell, seq, cfg, runs, resume)  # other settings in the cell: refused, named
             planned[cell] = (seq, e, cfg)
-    if isinstance(scheduler, str):
-        scheduler = connect_scheduler(scheduler)  # before the IK fits: a wrong address fails at once
+    with folder_lock(out_dir):  # one writer: a second compare (or --resume) on this folder is refused
+        return _run_cells(name, configs, planned, out_dir, runs=runs, seed=seed, workers=workers,
+                          scheduler=scheduler, resume=resume, progress=progress, max_frames=max_frames)
+
+
+def _run_cells(name: str, configs: list[tuple[Entry, TrackConfig]], planned: dict[Path, tuple[Any, Entry, TrackConfig]],
+               out_dir: Path, *, runs: int, seed: int, workers: int | None, scheduler: Any, resume: bool,
+               progress: bool, max_frames: int | None) -> dict[str, Any]:
+    jobs: list[Job] = []
+    cells: list[tuple[Entry, Path, Path, Any]] = []
     try:
-        out_dir.mkdir(parents=True, exist_ok=True)
+        if isinstance(scheduler, str):
+            scheduler = connect_scheduler(scheduler)  # before the IK fits: a wrong address fails at once
         for cell, (seq, e, cfg) in planned.items():
             setup = prepare_track(seq, cfg, cell)  # IK floor once per cell, before the workers start
             cell.mkdir(parents=True, exist_ok=True)

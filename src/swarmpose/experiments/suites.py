@@ -163,7 +163,8 @@ def apply_variant(config: Any, variant: str) -> Any:
         raise ConfigError(f"variant {variant!r} needs a staged configuration, {config.name!r} has no stages")
     if key == "budget":
         if not value.isdigit() or int(value) < 1000 or int(value) % 1000:
-            raise ConfigError(f"variant {variant!r}: the budget must be 1000, 2000, 3000... evaluations per frame")
+            raise ConfigError(f"variant {variant!r}: B must be 1000, 2000, 3000... (every stage's iterations x B/1000: "
+                              f"B evaluations per frame for the thesis's 1000-evaluation configurations)")
         factor = int(value) / 1000.0
         new = tuple(dataclasses.replace(s, n_iterations=int(round(s.n_iterations * factor))) for s in stages)
     elif key == "stage2":

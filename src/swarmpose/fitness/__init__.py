@@ -27,9 +27,9 @@ Factory
 
 * ``"silhouette_edge"`` -- :class:`SilhouetteEdgeFitness`, thesis ``f = f_s + f_e`` (eq. 5.1-5.5,
   ``a = 0.5``) averaged over the views;
-* ``"deutscher_reid"`` -- :class:`DeutscherReidFitness`, Deutscher & Reid eq. 14-17;
+* ``"deutscher_reid"`` -- :class:`DeutscherReidFitness`, Deutscher & Reid eq. 14-17 (``log w``);
 * ``"markers"`` -- :class:`MarkerFitness`, Sharifi et al. eq. 7-12 (``rho = 5`` px, penalty 200,
-  ``w = exp(-mean score)``);
+  ``log w = -mean score``);
 * ``"reprojection"`` -- :class:`ReprojectionFitness`, robust symmetric reprojection error (points to
   detections and detections to points; the tracker's default for the AAPSO family);
 
@@ -55,7 +55,7 @@ from swarmpose.fitness.backends import BACKENDS, Measurements, PreparedFrame, pr
 from swarmpose.fitness.base import (
     Fitness,
     ImageOptions,
-    deutscher_reid_weight,
+    deutscher_reid_log_weight,
     edge_score,
     silhouette_score,
 )
@@ -78,7 +78,7 @@ __all__ = [
     "PreparedFrame",
     "ReprojectionFitness",
     "SilhouetteEdgeFitness",
-    "deutscher_reid_weight",
+    "deutscher_reid_log_weight",
     "edge_score",
     "make_fitness",
     "prepare_frame",

@@ -11,7 +11,7 @@ import numpy as np
 from swarmpose.errors import ConfigError, ShapeError
 
 __all__ = ["Fitness", "ImageOptions", "parse_image_options", "TERMS", "silhouette_score", "edge_score",
-           "deutscher_reid_weight", "check_scores"]
+           "deutscher_reid_log_weight", "check_scores"]
 
 #: Values of the ``"terms"`` option.
 TERMS = ("silhouette+edge", "silhouette", "edge")
@@ -21,6 +21,12 @@ _OPTION_KEYS = ("edge_cones", "edge_top", "terms")
 @runtime_checkable
 class Fitness(Protocol):
     """A batched fitness for one frame (``shared/design.md`` §2): higher is better.
+
+    Scores are log-weights, ``score = log w``: the fitnesses that define a weight (Deutscher & Reid
+    eq. 17, Sharifi et al. eq. 12: ``w = exp(-...)``) return its logarithm, and the thesis's
+    ``f = f_s + f_e`` is read as ``log w`` (the annealed particle filter weights by
+    ``w^beta = exp(beta * score)``, DR05 eq. 3, 6). The swarm optimisers only rank scores, so for them
+    the logarithm changes nothing.
 
     ``bind(frame)`` installs the observation (image fitness: a
     :class:`~swarmpose.features.FrameFeatures`; marker fitness: a
@@ -129,17 +135,17 @@ def edge_score(edge_sum: np.ndarray, count: np.ndarray) -> np.ndarray:
     return edge_sum / np.maximum(count, 1.0)  # the sum is 0 where the count is 0
 
 
-def deutscher_reid_weight(edge_sq: np.ndarray, edge_count: np.ndarray, region_sq: np.ndarray,
-                          region_count: np.ndarray) -> np.ndarray:
-    """Deutscher & Reid (2005) eq. 14-17: ``w = exp(-sum_views (Sigma^e + Sigma^r))``.
+def deutscher_reid_log_weight(edge_sq: np.ndarray, edge_count: np.ndarray, region_sq: np.ndarray,
+                              region_count: np.ndarray) -> np.ndarray:
+    """Deutscher & Reid (2005) eq. 14-17 as a log-weight: ``log w = -sum_views (Sigma^e + Sigma^r)``.
 
     ``Sigma^e = mean (1 - p^e)^2`` over the visible edge samples (eq. 14), ``Sigma^r = mean (1 - p^r)^2``
     over the interior points (eq. 15); a view with no sample of a kind contributes 1 for it (no
-    evidence: the largest SSD). Inputs ``(N, C)``; returns ``(N,)`` in ``(0, 1]``.
+    evidence: the largest SSD). Inputs ``(N, C)``; returns ``(N,)`` in ``[-2 C, 0]``.
     """
     se = np.where(edge_count > 0, edge_sq / np.maximum(edge_count, 1.0), 1.0)
     sr = np.where(region_count > 0, region_sq / np.maximum(region_count, 1.0), 1.0)
-    return np.exp(-(se + sr).sum(axis=1))
+    return -(se + sr).sum(axis=1)
 
 
 def check_scores(scores: np.ndarray, n: int) -> np.ndarray:

@@ -12,7 +12,7 @@ from swarmpose.features import FrameFeatures
 from swarmpose.fitness.backends import Measurements, PreparedFrame, Request, make_backend
 from swarmpose.fitness.base import (
     ImageOptions,
-    deutscher_reid_weight,
+    deutscher_reid_log_weight,
     edge_score,
     parse_image_options,
     silhouette_score,
@@ -228,12 +228,13 @@ class SilhouetteEdgeFitness(ImageFitness):
 
 
 class DeutscherReidFitness(ImageFitness):
-    """Deutscher & Reid (2005) weighting, eq. 14-17: ``w = exp(-sum_c (Sigma^e_c + Sigma^r_c))``.
+    """Deutscher & Reid (2005) weighting, eq. 14-17, as its log: ``log w = -sum_c (Sigma^e_c + Sigma^r_c)``.
 
     ``Sigma^e``: mean ``(1 - p)^2`` of the edge map at the visible contour samples (the same points as
     the thesis edge fitness, so ``edge_cones``/``edge_top`` apply); ``Sigma^r``: mean ``(1 - O)^2`` of
     the observed silhouette at interior grid points of every cone (Fig. 6(b); ``region_spacing``
-    pixels apart). The annealed particle filter's alternative likelihood; in ``(0, 1]``. ``terms``
+    pixels apart). The annealed particle filter's alternative likelihood; in ``[-2 C, 0]`` for ``C``
+    views (the weight ``w`` in ``(0, 1]``). ``terms``
     ``"edge"`` or ``"silhouette"`` keeps only ``Sigma^e`` or ``Sigma^r``.
 
     Parameters
@@ -261,8 +262,8 @@ class DeutscherReidFitness(ImageFitness):
         zero = np.zeros_like(m.edge_sq)
         one = np.ones_like(m.edge_sq)
         if opts.terms == "silhouette":  # drop Sigma^e: zero SSD with a unit count
-            return deutscher_reid_weight(zero, one, m.region_sq, m.region_count)
+            return deutscher_reid_log_weight(zero, one, m.region_sq, m.region_count)
         if opts.terms == "edge":
-            return deutscher_reid_weight(m.edge_sq, m.edge_count, zero, one)
-        return deutscher_reid_weight(m.edge_sq, m.edge_count, m.region_sq, m.region_count)
+            return deutscher_reid_log_weight(m.edge_sq, m.edge_count, zero, one)
+        return deutscher_reid_log_weight(m.edge_sq, m.edge_count, m.region_sq, m.region_count)
 

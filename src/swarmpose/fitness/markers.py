@@ -9,11 +9,11 @@ frame origin of the body model).
   point (eq. 9), take the nearest detection in every view (eq. 10), drop it if farther than
   ``rho = 5`` px; the score of point ``m`` is the generalised symmetric epipolar distance of its
   matched detections (eq. 7-8) with ``penalty = 200`` for every view pair lacking a match;
-  ``w = exp(-mean_m s_m)`` (eq. 11-12).
+  ``w = exp(-mean_m s_m)`` (eq. 11-12), returned as ``log w = -mean_m s_m``.
 * :class:`ReprojectionFitness` (``kind="reprojection"``) -- our better-behaved alternative: the
   reprojection error ``e`` of every point to its nearest detection in every view, and (``symmetric``,
   the default) of every detection to its nearest projected point, through a truncated Cauchy loss
-  ``log(1 + min(e, e_max)^2 / tau^2)``; ``w = exp(-mean loss)``. Smooth near the optimum (the
+  ``log(1 + min(e, e_max)^2 / tau^2)``; ``log w = -mean loss``. Smooth near the optimum (the
   epipolar score depends on the pose only through which detections match, so it is flat within
   ``rho`` of them), and bounded for missing or false detections. The detection-to-model half stops
   two model points from sharing one detection while another detection goes unexplained (a model
@@ -22,6 +22,10 @@ frame origin of the body model).
 Backends: ``"numba"`` (default; numba kinematics, then the matching vectorised over the batch in
 numpy, with the epipolar distances of all detection pairs tabulated once per frame) and
 ``"reference"`` (plain loops over poses, points and views with the formulas written out).
+
+Both return log-weights (the :class:`~swarmpose.fitness.base.Fitness` contract): the annealed particle
+filter weights a particle by ``w^beta = exp(beta * score)`` (DR05 eq. 3, 6); read as a weight itself,
+``exp(beta * w)`` left the epipolar score's weights almost uniform.
 """
 
 from __future__ import annotations
@@ -215,7 +219,7 @@ class MarkerFitness(_MarkerBase):
         return self._point_scores(self._points3d(self.model.check_poses(poses)))
 
     def _score_batch(self, X: np.ndarray) -> np.ndarray:
-        return np.exp(-self._point_scores(X).mean(axis=1))  # eq. 12
+        return -self._point_scores(X).mean(axis=1)  # log of eq. 12
 
     def _point_scores(self, X: np.ndarray) -> np.ndarray:
         matches = []
@@ -256,17 +260,17 @@ class MarkerFitness(_MarkerBase):
                     d = float(symmetric_epipolar_distance(F, matched[i], matched[j]))  # eq. 7
                 total += d * d
             scores.append(math.sqrt(total))  # eq. 8, 11
-        return math.exp(-float(np.mean(scores)))  # eq. 12
+        return -float(np.mean(scores))  # log of eq. 12
 
 
 class ReprojectionFitness(_MarkerBase):
-    """Robust reprojection fitness: ``w = exp(-mean of log(1 + min(e, e_max)^2 / tau^2))``.
+    """Robust reprojection fitness: ``log w = -mean of log(1 + min(e, e_max)^2 / tau^2)``.
 
     The mean runs over ``e_mc``, the distance from model point ``m`` projected into view ``c`` to the
     nearest detection there (``e_max`` when the view has none), and -- with ``symmetric=True`` --
     over ``e'_qc``, the distance from detection ``q`` of view ``c`` to the nearest projected model
-    point. In ``(0, 1]``; 1 when every point projects exactly onto a detection in every view and
-    (symmetric) every detection is so explained. False detections add a bounded, nearly constant
+    point. At most 0 (the weight ``w`` in ``(0, 1]``); 0 when every point projects exactly onto a
+    detection in every view and (symmetric) every detection is so explained. False detections add a bounded, nearly constant
     term.
 
     Parameters
@@ -310,7 +314,7 @@ class ReprojectionFitness(_MarkerBase):
             if self.symmetric:
                 total += self._loss(d.min(axis=1)).sum(axis=1)
                 count += len(det)
-        return np.exp(-total / count)
+        return -total / count
 
     def _score_one(self, X: np.ndarray) -> float:
         losses = []
@@ -324,4 +328,4 @@ class ReprojectionFitness(_MarkerBase):
                 for d in det:
                     e = min(math.hypot(*(p - d)) for p in proj)
                     losses.append(math.log1p(min(e, self.e_max) ** 2 / self.tau**2))
-        return math.exp(-float(np.mean(losses)))
+        return -float(np.mean(losses))

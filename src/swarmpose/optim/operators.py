@@ -257,8 +257,9 @@ def _log_weights(scores: np.ndarray, beta: float) -> np.ndarray:
 def annealing_weights(scores: np.ndarray, beta: float) -> np.ndarray:
     """Normalised weights ``pi ∝ w^beta`` ([DR05] eq. 3 and 6), with scores read as ``log w``.
 
-    The optimisers' scores are log-weights: ``w = exp(score)`` (DR05's weighting function is itself
-    an exponential of a negative sum of squared differences, eq. 14-17). Invalid scores (``-inf``) get
+    The optimisers' scores are log-weights: ``w = exp(score)`` (the :class:`~swarmpose.fitness.Fitness`
+    contract; DR05's weighting function is itself an exponential of a negative sum of squared
+    differences, eq. 14-17, and the fitnesses return its logarithm). Invalid scores (``-inf``) get
     weight 0; if every score is invalid the weights are uniform.
 
     Parameters

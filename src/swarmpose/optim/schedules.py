@@ -33,6 +33,7 @@ __all__ = [
     "aapso_stages",
     "global_stages",
     "hard2_stages",
+    "head_twist_indices",
     "hpso12_stages",
     "lower_limb_indices",
     "sppso3_stages",
@@ -69,10 +70,15 @@ def _root(model: Any) -> tuple[np.ndarray, np.ndarray]:
     return _group(model, "root_orientation"), _group(model, "root_position")
 
 
+def head_twist_indices(model: Any) -> np.ndarray:
+    """The head twist x31, held fixed in every thesis experiment ([FL12] 6.1); empty if the model has none."""
+    return _group(model, "head_twist", required=False)
+
+
 def _all_but_twist(model: Any) -> np.ndarray:
     """All parameters except the head twist (x31 is held fixed in every thesis experiment, [FL12] 6.1)."""
     keep = np.ones(_dim(model), dtype=bool)
-    keep[_group(model, "head_twist", required=False)] = False
+    keep[head_twist_indices(model)] = False
     return np.flatnonzero(keep)
 
 

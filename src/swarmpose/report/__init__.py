@@ -139,6 +139,7 @@ def make_report(
     a ``sequence`` given explicitly that is not the tracked sequence raises :class:`DataError`.
     """
     res = results_dir if isinstance(results_dir, Results) else load_results(results_dir)
+    res.run(run)  # no such finished run: an error before any file of an earlier report is touched
     if sequence is not None and (overlay_frames > 0 or video):
         res.sequence_path(sequence)  # a wrong folder the user named is an error, before anything is drawn
     out = Path(out_dir) if out_dir is not None else res.path / "report"

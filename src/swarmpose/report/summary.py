@@ -152,6 +152,7 @@ def write_summary(
     fps = res.fps
     evals = cfg.get("evals_per_frame") or s.get("evals_per_frame")
 
+    scored = int(res.runs[0].valid.sum()) if res.runs else T
     L: list[str] = [f"# Tracking report: {res.name}", ""]
     head = f"**{algo.upper()}**"
     if fps:
@@ -185,7 +186,8 @@ def write_summary(
         ("runs", f"{len(res.runs)}" + (f" of {cfg['runs']}" if cfg.get("runs") not in (None, len(res.runs)) else "")),
         ("frames", (f"{T} (sequence frames {int(fi[0])}–{int(fi[-1])})" if T else "0")
          + (f", the first {cfg['max_frames']} at this rate (--max-frames)"
-            if cfg.get("max_frames") and cfg["max_frames"] <= T else "")),
+            if cfg.get("max_frames") and cfg["max_frames"] <= T else "")
+         + (f"; {scored} scored (the others lack valid ground truth)" if scored < T else "")),
         ("sequence", f"`{cfg['sequence']}`" if cfg.get("sequence") else "–"),
         ("created", str(cfg.get("created", "–"))),
     ]

@@ -39,6 +39,7 @@ import numpy as np
 from swarmpose.body.measurements import SubjectMeasurements
 from swarmpose.camera import Camera
 from swarmpose.errors import ConfigError, DataError
+from swarmpose.io.bvh import read_bvh
 from swarmpose.io.mocap import load_clip
 from swarmpose.io.sequence import MarkerData, SequenceWriter, open_sequence
 from swarmpose.synth.body import BodySettings, ObservationBody
@@ -248,6 +249,7 @@ def synthesize(
         raise ConfigError(f"fs_stride must be >= 0, got {fs_stride!r}")
     t0 = time.perf_counter()
     clip = load_clip(clip_path, fps=fps)
+    source_rate = float(read_bvh(clip_path).frame_rate)  # the capture rate; clip.bvh is the resampled clip
     T = clip.frames if max_frames is None else max(0, min(clip.frames, int(max_frames)))
     if T < 1:
         raise ConfigError(f"{clip_path}: nothing to synthesise ({clip.frames} frames, max_frames={max_frames})")
@@ -372,7 +374,7 @@ def synthesize(
             "swarmpose_version": _version(),
             "created_utc": datetime.now(UTC).isoformat(timespec="seconds"),
             "clip": {"path": str(clip_path.resolve()), "name": clip.name, "sha256": _sha256(clip_path),
-                     "source_frame_rate": float(clip.bvh.frame_rate) if max_frames is None else None,
+                     "source_frame_rate": source_rate,
                      "frames": T, "fps": float(fps)},
             "seed": seed,
             "settings": {"body": body_settings.to_dict(), "scene": scene.to_dict(), "markers": markers.to_dict(),

@@ -26,6 +26,7 @@ import numpy as np
 
 from swarmpose.errors import ConfigError, DataError, FormatError
 from swarmpose.io.files import load_npz, read_json_object
+from swarmpose.io.lock import LOCK_NAME, folder_lock
 from swarmpose.metrics import TrackErrors, aggregate_runs
 from swarmpose.track.tracker import (
     TrackConfig,
@@ -399,18 +400,27 @@ def track_runs(sequence: str | Path, config: TrackConfig, runs: int, out_dir: Pa
     """Track ``runs`` runs of one configuration and write ``out_dir`` (config, runs, summary)."""
     out_dir = Path(out_dir)
     check_results_folder(out_dir, sequence, config, runs, resume)  # before anything is written
-    if isinstance(scheduler, str):
-        scheduler = connect_scheduler(scheduler)  # before the IK fit: a wrong address fails at once
     fresh = not out_dir.exists()
-    try:
-        out_dir.mkdir(parents=True, exist_ok=True)
-        setup = prepare_track(sequence, config, out_dir)  # fits and caches the IK floor once
-        write_config(out_dir, setup, runs, resume)
-    except BaseException:
-        close_client(scheduler)
-        if fresh and out_dir.is_dir() and not any(out_dir.iterdir()):
-            out_dir.rmdir()  # a source or setting that fails leaves no empty results folder behind
-        raise
+    with folder_lock(out_dir):  # a second process on this folder (a --resume started twice) is refused
+        try:
+            if isinstance(scheduler, str):
+                scheduler = connect_scheduler(scheduler)  # before the IK fit: a wrong address fails at once
+            setup = prepare_track(sequence, config, out_dir)  # fits and caches the IK floor once
+            write_config(out_dir, setup, runs, resume)
+        except BaseException:
+            close_client(scheduler)
+            if fresh:  # a source or setting that fails leaves no results folder behind
+                (out_dir / LOCK_NAME).unlink(missing_ok=True)
+                if out_dir.is_dir() and not any(out_dir.iterdir()):
+                    out_dir.rmdir()
+            raise
+        summary = _track_jobs(sequence, config, runs, out_dir, setup, resume=resume, workers=workers,
+                              scheduler=scheduler, progress=progress)
+    return summary
+
+
+def _track_jobs(sequence: str | Path, config: TrackConfig, runs: int, out_dir: Path, setup: Any, *, resume: bool,
+                workers: int | None, scheduler: Any, progress: bool) -> dict[str, Any]:
     jobs = [Job(str(sequence), asdict(config), k, str(out_dir), resume, len(setup.frame_indices))
             for k in range(runs)]
     per_run = run_jobs(jobs, workers=workers, scheduler=scheduler, progress=progress)
@@ -429,6 +439,7 @@ def track_runs(sequence: str | Path, config: TrackConfig, runs: int, out_dir: Pa
         "sigma_mm": agg["sigma"],  # eq. 19: per-frame spread over the 15 joints, averaged over frames
         "frames_per_s": float(np.mean([r["frames_per_s"] for r in per_run])),
         "frames": int(len(setup.frame_indices)),
+        "frames_scored": int(setup.valid.sum()),  # with valid ground truth: the errors are over these
         "frame_interval_s": _intervals(setup.frame_times),
         "worst": {"run": agg["worst"]["run"], "d_mean_mm": agg["worst"]["d_mean"],
                   "d_max_mm": agg["worst"]["d_max"], "mmta": agg["worst"]["mmta"]},
