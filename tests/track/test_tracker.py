@@ -254,7 +254,8 @@ def test_constant_velocity_centres_the_search_one_step_on(short_sequence, tmp_pa
                                                                                recorded[self.motion]))
     zero = run_tracker(prepare_track(short_sequence, TrackConfig(algo=algo, fps=20.0, seed=4), None), 0, None)
     cfg = TrackConfig(algo=algo, fps=20.0, seed=4, motion="constant-velocity")
-    full = run_tracker(prepare_track(short_sequence, cfg, None), 0, None)
+    setup = prepare_track(short_sequence, cfg, None)
+    full = run_tracker(setup, 0, None)
     starts_zero, starts = list(recorded["zero-velocity"]), list(recorded["constant-velocity"])
     assert np.array_equal(full.params[:2], zero.params[:2])
     p0, p1 = full.params[0], full.params[1]
@@ -264,9 +265,13 @@ def test_constant_velocity_centres_the_search_one_step_on(short_sequence, tmp_pa
         assert not np.allclose(full.params[2:], zero.params[2:])
     else:
         # the APF starts from its carried set: the same set as zero velocity's at frame 2, moved by x1 - x0
+        from swarmpose.body.priors import HardPriors
+
         moved = starts[2][1] - starts_zero[2][1]
-        assert np.all(np.isclose(moved, p1 - p0).all(axis=1) | np.isclose(moved, 0).all(axis=1))
-        assert np.isclose(moved, p1 - p0).all(axis=1).mean() > 0.5  # measured: 0.885 (the rest would break a limit)
+        stays_valid = HardPriors(setup.model).valid(starts_zero[2][1] + (p1 - p0))
+        assert stays_valid.any() and not stays_valid.all()  # both kinds occur (37 % move with seed 4)
+        assert np.all(np.isclose(moved[stays_valid], p1 - p0))  # moved by the step where they stay valid,
+        assert np.all(moved[~stays_valid] == 0)  # left where they were where it would break a limit
     run_tracker(prepare_track(short_sequence, cfg, tmp_path), 0, tmp_path, stop_after=3)
     resumed = run_tracker(prepare_track(short_sequence, cfg, tmp_path), 0, tmp_path, resume=True)
     assert np.array_equal(resumed.params, full.params)
