@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import os
 import sys
 from pathlib import Path
 
@@ -10,7 +9,15 @@ import numpy as np
 import typer
 
 from swarmpose.cli.app import app
-from swarmpose.cli.common import console, err_console, escape, fail_on_user_error, note_upsampling, print_json
+from swarmpose.cli.common import (
+    console,
+    err_console,
+    escape,
+    fail_on_user_error,
+    names_a_folder,
+    note_upsampling,
+    print_json,
+)
 
 
 @app.command()
@@ -140,7 +147,7 @@ def ik(
     from swarmpose.io.mocap import load_clip
     from swarmpose.joints import JOINTS15
 
-    if out is not None and (out.endswith(("/", os.sep)) or Path(out).is_dir()):  # before the fit, which takes a while
+    if out is not None and names_a_folder(out):  # before the fit, which takes a while
         from swarmpose.errors import ConfigError
 
         raise ConfigError(f"--out {out} is a folder; give the .npz file to write, "

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import functools
 import json
+import os
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -101,3 +102,9 @@ def note_upsampling(clip: Path, fps: float) -> None:
     if fps > rate * (1 + 1e-6):
         err_console.print(f"note: {escape(str(clip))} is captured at {rate:g} Hz; at --fps {fps:g} the frames "
                           "between captured ones are interpolated, not measured", highlight=False)
+
+
+def names_a_folder(path: str) -> bool:
+    """``--out`` text that means a folder: an existing one, or one named with a trailing separator
+    (``out/``; typer's ``Path`` would drop the slash, so such options take ``str``)."""
+    return path.endswith(("/", os.sep)) or Path(path).is_dir()

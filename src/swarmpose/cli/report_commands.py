@@ -3,14 +3,13 @@ the tracked motion as BVH."""
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 from typing import Annotated
 
 import typer
 
 from swarmpose.cli.app import app
-from swarmpose.cli.common import console, err_console, escape, fail_on_user_error, print_json
+from swarmpose.cli.common import console, err_console, escape, fail_on_user_error, names_a_folder, print_json
 
 
 @app.command()
@@ -151,10 +150,9 @@ def export(
     rest_facing = (rest_facing or ("+x" if z_up else "+z")).lower()
     res = load_results(results_dir)
     r = res.run(run)
-    folder = out.endswith(("/", os.sep)) or Path(out).is_dir()
+    if names_a_folder(out):  # the file goes into it
+        out = Path(out) / f"{Path(results_dir).resolve().name}_run{run:03d}.bvh"
     out = Path(out)
-    if folder:  # the file goes into it
-        out = out / f"{Path(results_dir).resolve().name}_run{run:03d}.bvh"
     if out.exists() and not force:  # a mistyped --out must not clobber a source clip
         raise ConfigError(f"--out {out} exists; add --force to overwrite it")
     fps = res.fps

@@ -17,7 +17,7 @@ if TYPE_CHECKING:
 def default_results_name(name: str, cfg: TrackConfig) -> str:
     """``<sequence>-<algo>-<fps>fps`` and every setting that changes the results and is not the default
     (``-30frames-s1-ds2-markers-hard``...), so that another seed or setting is not taken for a run to resume."""
-    from swarmpose.experiments.run import _slug
+    from swarmpose.experiments.run import folder_slug
 
     parts = [name, cfg.algo, f"{cfg.fps:g}fps"]
     if cfg.max_frames is not None:
@@ -27,11 +27,11 @@ def default_results_name(name: str, cfg: TrackConfig) -> str:
     if cfg.downsample != 1:
         parts.append(f"ds{cfg.downsample}")
     if cfg.model != "balan31":
-        parts.append(_slug(Path(cfg.model).stem))
+        parts.append(folder_slug(Path(cfg.model).stem))
     for value, default in ((cfg.fitness, "auto"), (cfg.optim_variant, ""), (cfg.fitness_options, ""),
                            (cfg.feature_options, ""), (cfg.motion, "zero-velocity")):
         if value and value != default:
-            parts.append(_slug(str(value)))
+            parts.append(folder_slug(str(value)))
     return "-".join(parts)
 
 

@@ -24,10 +24,11 @@ from swarmpose.track.runner import (
 )
 from swarmpose.track.tracker import TrackConfig, prepare_track, write_config
 
-__all__ = ["run_suite", "suite_configs"]
+__all__ = ["folder_slug", "run_suite", "suite_configs"]
 
 
-def _slug(text: str) -> str:
+def folder_slug(text: str) -> str:
+    """``text`` as a folder-name part: letters, digits, ``-`` and ``.`` kept, anything else ``_``."""
     return "".join(c if c.isalnum() or c in "-." else "_" for c in text).strip("_")
 
 
@@ -70,7 +71,7 @@ def run_suite(name: str, sequences: list[Path], out_dir: Path, *, runs: int = 5,
     planned: dict[Path, tuple[Any, Entry, TrackConfig]] = {}
     for seq in sequences:  # every cell checked before any is written
         for e, cfg in configs:
-            cell = out_dir / _slug(_sequence_name(seq)) / _slug(e.label)
+            cell = out_dir / folder_slug(_sequence_name(seq)) / folder_slug(e.label)
             if cell in planned:
                 raise ConfigError(f"two sequences would share the results folder {cell}: {planned[cell][0]} and "
                                   f"{seq} (give clips with different names)")

@@ -414,9 +414,8 @@ def track_runs(sequence: str | Path, config: TrackConfig, runs: int, out_dir: Pa
                 if out_dir.is_dir() and not any(out_dir.iterdir()):
                     out_dir.rmdir()
             raise
-        summary = _track_jobs(sequence, config, runs, out_dir, setup, resume=resume, workers=workers,
-                              scheduler=scheduler, progress=progress)
-    return summary
+        return _track_jobs(sequence, config, runs, out_dir, setup, resume=resume, workers=workers,
+                           scheduler=scheduler, progress=progress)
 
 
 def _track_jobs(sequence: str | Path, config: TrackConfig, runs: int, out_dir: Path, setup: Any, *, resume: bool,
