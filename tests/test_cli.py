@@ -60,6 +60,8 @@ def test_info_warns_about_an_implausible_unit(mocap_dir: Path):
     assert data["rest_height_mm"] > 20_000 and "is --unit right?" in data["warnings"][0]
     plain = runner.invoke(app, ["info", clip, "--unit", "m"])
     assert "not a person's height" in " ".join(plain.stderr.split())
+    inch = json.loads(runner.invoke(app, ["info", clip, "--unit", "inch", "--json"]).stdout)  # CMU units are 1/0.45 inch
+    assert 600 < inch["rest_height_mm"] < 700 and "is --unit right?" in inch["warnings"][0]
 
 
 def test_info_and_ik_read_an_exported_file(mocap_dir: Path, tmp_path: Path):

@@ -77,8 +77,9 @@ def test_aggregate_over_runs():
     agg = aggregate_runs(runs)
     assert agg["d_mean"] == pytest.approx(70.0) and agg["runs"] == 3
     assert agg["worst"]["run"] == 1 and agg["worst"]["d_mean"] == pytest.approx(120.0)
-    assert agg["d_mean_std_over_runs"] == pytest.approx(np.std([30.0, 120.0, 60.0]))
+    assert agg["d_mean_std_over_runs"] == pytest.approx(45.825756949558, rel=1e-12)  # sample SD, n - 1 = 2
     assert agg["mmta"] == pytest.approx(2 / 3)
+    assert aggregate_runs(runs[:1])["d_mean_std_over_runs"] == 0.0
     with pytest.raises(ValueError, match="no runs"):
         aggregate_runs([])
 

@@ -105,12 +105,16 @@ def track_errors(estimate: np.ndarray, truth: np.ndarray, delta_mm: float = MMTA
 
 
 def aggregate_runs(runs: Sequence[TrackErrors]) -> dict[str, object]:
-    """Mean over runs of each measure, their spread, and the worst run (highest D_mean)."""
+    """Mean over runs of each measure, their spread, and the worst run (highest D_mean).
+
+    The spread ``d_mean_std_over_runs`` is the sample standard deviation of the runs' D_mean (n - 1 in
+    the denominator: the runs are a sample of the tracker's outcomes); 0 for a single run.
+    """
     if not runs:
         raise ValueError("no runs to aggregate")
     keys = ("d_mean", "d_max", "d_std", "mmta", "mmtp", "mu", "sigma")
     out: dict[str, object] = {k: float(np.mean([getattr(r, k) for r in runs])) for k in keys}
-    out["d_mean_std_over_runs"] = float(np.std([r.d_mean for r in runs]))
+    out["d_mean_std_over_runs"] = float(np.std([r.d_mean for r in runs], ddof=1)) if len(runs) > 1 else 0.0
     worst = max(range(len(runs)), key=lambda i: runs[i].d_mean)
     out["worst"] = {"run": worst, **{k: getattr(runs[worst], k) for k in keys}}
     out["per_joint"] = {n: float(np.mean([r.per_joint[n] for r in runs])) for n in JOINTS15}

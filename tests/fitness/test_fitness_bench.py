@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import json
+import time
 
 from typer.testing import CliRunner
 
 from swarmpose.cli.app import app
 from swarmpose.fitness import torch_available
+from swarmpose.fitness.bench import time_call
 
 #: What --backends auto measures here.
 AUTO = ["numba", *(["torch"] if torch_available() else []), "reference"]
@@ -41,3 +43,17 @@ def test_table_and_errors():
     assert bad.exit_code == 2
     bad = CliRunner().invoke(app, ["bench", "fitness", "--scales", "0"])
     assert bad.exit_code == 2
+
+
+def test_time_call_warms_up_for_min_time_before_timing():
+    """The first call (a JIT compile, say) and the min_time of warm-up after it are not in the timed runs."""
+    calls = []
+
+    def fn():
+        calls.append(len(calls))
+        time.sleep(0.3 if len(calls) == 1 else 0.002)
+
+    per_call = time_call(fn, repeats=2, min_time=0.05)
+    assert per_call < 0.05  # ~0.002 s; the 0.3-s first call is not timed
+    # 1 first call + >= 2 warm-up calls filling 0.05 s + >= 2 calls per timed run
+    assert len(calls) >= 1 + 2 + 2 * 2

@@ -52,6 +52,16 @@ def test_a_second_report_in_the_same_folder_leaves_no_stale_overlays(results_cop
     assert other.read_text() == "mine"  # only the report's own pictures are replaced
 
 
+def test_a_new_video_replaces_the_previous_reports_video(results_copy: Path):
+    rep = results_copy / "report"
+    first = make_report(results_copy, overlay_frames=0, video=True)
+    assert first.video == rep / "overlay_run000.gif"
+    make_report(results_copy, overlay_frames=0)  # no --video: the video made earlier stays
+    assert first.video.is_file()
+    second = make_report(results_copy, overlay_frames=0, video=True, run=1)
+    assert sorted(rep.glob("overlay_run*")) == [second.video] == [rep / "overlay_run001.gif"]
+
+
 def test_a_report_for_a_missing_run_leaves_the_previous_report_alone(results_copy: Path):
     from swarmpose.errors import DataError
 

@@ -97,9 +97,11 @@ def _height_check(c) -> tuple[float, list[str]]:
 
     height_mm = rest_height(c.bvh) * float(c.mm_per_unit)
     warnings = []
-    if not 500.0 <= height_mm <= 2600.0:
+    # The rest pose's joints and end sites stand ~10 % below the person's height (1.37-1.47 m for the
+    # shared clips); 0.9-2.4 m covers children to tall adults, and a CMU clip read as inches (0.65 m) fails.
+    if not 900.0 <= height_mm <= 2400.0:
         warnings.append(f"the skeleton stands {height_mm / 1000.0:.2f} m tall in unit {c.unit_name!r}: "
-                        "not a person's height; is --unit right?")
+                        "not a person's height (0.9-2.4 m expected); is --unit right?")
     return height_mm, warnings
 
 

@@ -27,8 +27,16 @@ __all__ = ["machine_info", "run_fitness_benchmark", "time_call"]
 
 
 def time_call(fn: Callable[[], Any], *, repeats: int = 5, min_time: float = 0.2) -> float:
-    """Median seconds per call of ``fn`` over ``repeats`` runs of at least ``min_time`` s (1 warm-up)."""
-    fn()
+    """Median seconds per call of ``fn`` over ``repeats`` runs of at least ``min_time`` s each.
+
+    Before them, ``fn`` is called once and then for another ``min_time`` s: JIT compilation, caches and, for
+    PyTorch, its allocator and thread pool need more than one call to settle (one warm-up call made
+    torch's rate 20 % low with ``min_time=0.1``).
+    """
+    fn()  # the first call may compile: the warm-up time starts after it
+    t0 = time.perf_counter()
+    while time.perf_counter() - t0 < min_time:
+        fn()
     runs = []
     for _ in range(max(1, repeats)):
         n = 0

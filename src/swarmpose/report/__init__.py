@@ -166,6 +166,11 @@ def make_report(
             if video:
                 vid = overlay_video(res, out / f"overlay_run{run:03d}.{video_format}", run=run,
                                     fmt=video_format, scale=video_scale, sequence=sequence, crop=crop)
+                # an earlier report's video of another run or format would pass for this one's; a report
+                # without --video keeps it (it took minutes to make)
+                for old in [*out.glob("overlay_run*.gif"), *out.glob("overlay_run*.mp4")]:
+                    if old.resolve() != vid.resolve():
+                        old.unlink()
     summary = write_summary(res, out=out / "summary.md", figures=figures, overlays=over, video=vid, notes=notes)
     page = write_html(summary)
     return ReportPaths(summary=summary, html=page, figures=figures, overlays=over, video=vid, notes=notes)

@@ -41,7 +41,7 @@ def comparison_table(report: dict[str, Any]) -> str:
         part = (f"; only the first {n} frames at {slowest:g} fps ({(n - 1) / slowest:.2f} s; the same stretch at "
                 "the other rates), --max-frames: a quick try, not the papers' comparison")
     lines = [f"# Suite `{report['suite']}` ({runs} per entry, seed {report['seed']}{part})", "",
-             "| sequence | entry | eval/frame | D_mean mm (± over runs) | worst run D_mean | D_max mm | IK floor mm "
+             "| sequence | entry | eval/frame | D_mean mm (± SD over runs) | worst run D_mean | D_max mm | IK floor mm "
              "| MMTA % | frames/s |",
              "|---|---|---:|---:|---:|---:|---:|---:|---:|"]
     for r in report["rows"]:

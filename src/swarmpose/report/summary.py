@@ -216,7 +216,7 @@ def write_summary(
                       _f(wr["mmtp_mm"]), _f(wr["frames_per_s"], ".2f")])
         spread = s.get("d_mean_std_over_runs")
         if spread is None:
-            spread = float(np.std([r["d_mean_mm"] for r in rows]))
+            spread = float(np.std([r["d_mean_mm"] for r in rows], ddof=1))  # as metrics.aggregate_runs
     ik = res.ik_frame_error_mm
     ik_mean = s.get("ik_floor_mm", cfg.get("ik_floor_mm"))
     if ik_mean is None and ik is not None:
@@ -229,7 +229,7 @@ def write_summary(
                       "–", "–"])
     L += _table(["run", "D_mean (mm)", "D_max (mm)", "MMTA (%)", "MMTP (mm)", "frames/s"], trows) + [""]
     if len(rows) > 1:
-        L += [f"Spread of D_mean over the runs (standard deviation): {_f(spread)} mm.", ""]
+        L += [f"Spread of D_mean over the runs (sample standard deviation): {_f(spread)} mm.", ""]
     for f in figures:
         if Path(f).name.startswith("error_over_time"):
             L += [f"![3D error over time: each run, their mean and the IK floor]({_rel(Path(f), base)})", ""]
