@@ -222,3 +222,24 @@ def test_uneven_tracked_frames_are_put_on_an_even_clock():
     assert not again and same is not None and np.array_equal(same, params[:10])
     with pytest.raises(ConfigError, match="increasing"):
         uniform_clock(params[:3], np.array([0.0, 0.1, 0.1]), 20.0)
+
+
+@pytest.mark.parametrize("model_name", ["balan31", "full45"])
+def test_end_sites_neither_grow_the_figure_nor_go_through_the_floor(model_name: str, tmp_path: Path):
+    """Rest pose (Y up, facing +Z): the head top's End Site points forward, level with it (it used to add
+    70 mm above the head); balan31's ankles end the leg, and their End Sites are feet, forward and 30 degrees
+    down, 0.4 x the shank (they used to continue the shank 100 mm straight down)."""
+    model = load_model(model_name)
+    clip = read_bvh(export_bvh(model, random_valid_poses(model, 2), 30.0, tmp_path / "m.bvh"))
+    pos, ends = clip.rest_positions()
+    head = clip.joint_names.index("head_top")
+    assert ends[head, 1] == pytest.approx(pos[head, 1], abs=1e-6) and ends[head, 2] - pos[head, 2] >= 30.0
+    assert np.nanmax(ends[:, 1]) <= pos[:, 1].max() + 1e-6  # nothing above the head top
+    for side in ("l", "r"):
+        ankle = clip.joint_names.index(f"{side}_ankle")
+        if model_name == "balan31":
+            shank = float(np.linalg.norm(clip.offsets[ankle]))
+            foot = ends[ankle] - pos[ankle]
+            np.testing.assert_allclose(foot, 0.4 * shank * np.array([0.0, -0.5, np.sqrt(3) / 2]), atol=1e-5)
+        else:  # full45 has feet: the toe's End Site continues the foot
+            assert np.isnan(ends[ankle]).all()

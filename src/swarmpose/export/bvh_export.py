@@ -4,7 +4,12 @@ The hierarchy is the body model's own kinematic tree: one ``JOINT`` per model jo
 children in model order), ``OFFSET`` = the joint's offset from its parent (the subject's
 measurement, mm unless ``scale`` says otherwise), three rotation channels on every joint, position
 channels on the root (and on any other joint the model translates), and an ``End Site`` on every
-leaf (a short continuation of its bone, so importers give the leaf bone a length).
+leaf, so importers give the leaf bone a length: by default a continuation of the bone by a quarter of
+its length (30-100 mm: hands, toes). Two leaves get a shape instead, so that the figure neither grows
+nor sticks through the floor: the head top's end site points forward (the face's direction, a
+quarter of the neck-to-head-top length), and an ankle that ends the leg (a model without feet)
+gets a foot, 0.4 x the shank long, pointing forward and 30 degrees down. These end sites are
+drawing aids; the tracked joints are the ``JOINT`` s.
 
 Axes
 ----
@@ -51,6 +56,7 @@ from pathlib import Path
 import numpy as np
 
 from swarmpose.errors import ConfigError
+from swarmpose.joints import JOINTS15
 
 __all__ = ["export_bvh", "bvh_axes", "rest_rotation", "euler_from_matrices", "uniform_clock", "ROTATION_ORDERS",
            "REST_FACINGS"]
@@ -123,6 +129,25 @@ def euler_from_matrices(mats: np.ndarray, order: str, *, continuous: bool = True
         cb = ref + (b[t] - ref + 180.0) % 360.0 - 180.0
         out[t] = cb if np.abs(cb - ref).sum() < np.abs(ca - ref).sum() else ca
     return out
+
+
+def _end_site(bone_offset, role: str | None) -> np.ndarray:
+    """The End Site offset of a leaf joint in the model's zero-pose axes (mm; forward +x, up +z).
+
+    ``role`` ``"head"``: forward, a quarter of the bone (30-100 mm); ``"foot"`` (an ankle that ends the
+    leg): 0.4 x the shank, forward and 30 degrees down; otherwise the bone continued by a quarter of its
+    length (30-100 mm), or 50 mm up for a bone of zero length.
+    """
+    bone = np.asarray(bone_offset, dtype=np.float64)
+    n = float(np.linalg.norm(bone))
+    if n <= 1e-9:
+        return np.array([0.0, 0.0, 50.0])
+    if role == "head":
+        return np.array([float(np.clip(0.25 * n, 30.0, 100.0)), 0.0, 0.0])
+    if role == "foot":
+        a = np.radians(30.0)
+        return 0.4 * n * np.array([np.cos(a), 0.0, -np.sin(a)])
+    return bone / n * float(np.clip(0.25 * n, 30.0, 100.0))
 
 
 def _children(parents: np.ndarray) -> list[list[int]]:
@@ -286,6 +311,9 @@ def export_bvh(
     def vec(v: np.ndarray) -> str:
         return " ".join(num.format(float(x) + 0.0) for x in v)
 
+    role_of = {"head_top": "head", "l_ankle": "foot", "r_ankle": "foot"}
+    leaf_roles = {int(j): role_of[name] for name, j in zip(JOINTS15, model.joints15_index, strict=True)
+                  if name in role_of and not kids[int(j)]}
     lines = ["HIERARCHY"]
 
     def write_joint(j: int, depth: int) -> None:
@@ -299,13 +327,9 @@ def export_bvh(
         for c in kids[j]:
             write_joint(c, depth + 1)
         if not kids[j]:
-            bone = B @ np.asarray(kin.offsets[j])
-            n = float(np.linalg.norm(bone))
-            direction = bone / n if n > 1e-9 else B @ np.array([0.0, 0.0, 1.0])
-            length = float(np.clip(0.25 * n, 30.0, 100.0)) if n > 1e-9 else 50.0
             lines.append(f"{ind}\tEnd Site")
             lines.append(f"{ind}\t{{")
-            lines.append(f"{ind}\t\tOFFSET {vec(direction * length * scale)}")
+            lines.append(f"{ind}\t\tOFFSET {vec(B @ _end_site(kin.offsets[j], leaf_roles.get(j)) * scale)}")
             lines.append(f"{ind}\t}}")
         lines.append(f"{ind}}}")
 
