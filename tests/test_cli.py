@@ -190,3 +190,17 @@ def test_negative_seeds_and_missing_clips_are_refused_before_any_work(tmp_path: 
     listing = json.loads(runner.invoke(app, ["compare", "thesis-apf", "--list", "--max-frames", "4", "--json"]).stdout)
     assert listing["max_frames"] == 4
     assert {e["fps"]: e["max_frames"] for e in listing["suites"][0]["entries"]} == {20.0: 4, 60.0: 10}
+
+
+def test_demo_names_other_code_when_it_reuses_a_folder(tmp_path: Path, monkeypatch):
+    """A finished demo folder is reused; when it was tracked by another revision of the source, the reuse
+    message says so (old numbers must not pass for the code's)."""
+    from swarmpose.cli import demo as demo_module
+
+    monkeypatch.setattr("swarmpose.track.tracker.source_revision", lambda: "b" * 40)
+    (tmp_path / "config.json").write_text(json.dumps({"versions": {"swarmpose_git": "a" * 40}}))
+    assert demo_module._made_by_other_code(tmp_path) == f"; they were tracked by source {'a' * 12}, this is {'b' * 12}"
+    (tmp_path / "config.json").write_text(json.dumps({"versions": {"swarmpose_git": "b" * 40}}))
+    assert demo_module._made_by_other_code(tmp_path) == ""
+    (tmp_path / "config.json").write_text(json.dumps({"versions": {}}))
+    assert "unknown revision" in demo_module._made_by_other_code(tmp_path)

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import time
-
 import cv2
 import numpy as np
 import pytest
@@ -108,9 +106,14 @@ def test_frame_features_and_pyramid():
     quarter = compute_features(imgs, bgs, cams, downsample=4)
     assert quarter.size == (161, 121) and quarter.edges.max() <= 1.0
     assert ff.downsample(1) is ff
-    # the downsampled silhouette is the box-averaged one, re-binarised
-    ref = cv2.resize(ff.silhouettes[0] * 255, (322, 242), interpolation=cv2.INTER_AREA) >= 128
-    np.testing.assert_array_equal(half.silhouettes[0], ref)
+    # the downsampled silhouette is the box mean (plain numpy here), re-binarised at 1/2; the edge map the box
+    # mean rescaled to a peak of 1
+    for level, f in ((half, 2), (quarter, 4)):
+        for v in range(2):
+            box = ff.silhouettes[v].reshape(H // f, f, W // f, f).mean(axis=(1, 3))
+            np.testing.assert_array_equal(level.silhouettes[v], box >= 0.5)
+            e = ff.edges[v].astype(np.float64).reshape(H // f, f, W // f, f).mean(axis=(1, 3))
+            np.testing.assert_allclose(level.edges[v], e / e.max(), atol=1e-6)
     with pytest.raises(ConfigError):
         ff.downsample(0)
     with pytest.raises(ShapeError):
@@ -145,21 +148,3 @@ def test_feature_options():
     low = compute_features(frame[None], back[None], cams, silhouette_options=low_sil, edge_options=low_edge)
     inner = (np.abs(np.arange(H) - 300) <= 1)[:, None] & (cv2.erode(mask, np.ones((15, 15), np.uint8)) > 0)
     assert low.edges[0][inner].mean() > 0.3 > default.edges[0][inner].mean()
-
-
-def test_features_time_budget():
-    """Per-frame features of 4 raw 644x484 views: well under the 15 ms budget on an idle 2-core machine
-    (asserted with a wide margin here, because test machines are shared; ``swarmpose bench fitness``
-    reports the real number)."""
-    rng = np.random.default_rng(5)
-    pairs = [_scene(rng, 3.0) for _ in range(4)]
-    imgs = np.stack([p[0] for p in pairs])
-    bgs = np.stack([p[1] for p in pairs])
-    cams = _cams(4)
-    compute_features(imgs, bgs, cams)
-    runs = []
-    for _ in range(5):
-        t0 = time.perf_counter()
-        compute_features(imgs, bgs, cams)
-        runs.append(time.perf_counter() - t0)
-    assert np.median(runs) < 0.1

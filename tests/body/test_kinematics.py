@@ -112,6 +112,18 @@ def test_batched_equals_one_by_one_and_reference(poses):
     assert np.allclose(R @ np.swapaxes(R, -1, -2), np.eye(3), atol=1e-9)
 
 
+def test_parallel_kernel_equals_reference():
+    """Batches of PARALLEL_MIN_BATCH poses or more go through the prange kernel: same transforms."""
+    from swarmpose.body.kinematics import PARALLEL_MIN_BATCH
+
+    model = load_model("balan31")
+    rng = np.random.default_rng(3)
+    poses = rng.uniform(-3.0, 3.0, (PARALLEL_MIN_BATCH + 44, model.n_params))
+    poses[:, 3:6] *= 300.0
+    np.testing.assert_allclose(model.forward(poses), model.forward(poses, reference=True), atol=1e-9)
+    np.testing.assert_allclose(model.forward(poses[:7]), model.forward(poses)[:7], atol=1e-12)  # serial kernel
+
+
 @settings(max_examples=40, deadline=None)
 @given(poses=pose_batches)
 def test_bone_lengths_are_preserved(poses):

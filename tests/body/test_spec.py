@@ -10,7 +10,7 @@ import pytest
 
 from swarmpose.body.model import BodyModel, load_model
 from swarmpose.body.spec import BodySpec, Subject, builtin_specs, load_spec
-from swarmpose.errors import ConfigError, FormatError
+from swarmpose.errors import ConfigError, DataError, FormatError
 
 
 @pytest.fixture(scope="module")
@@ -81,3 +81,21 @@ def test_unknown_model_and_variant():
         load_spec("no_such_model")
     with pytest.raises(ConfigError, match="thesis"):
         BodyModel(load_spec("balan31"), variant="nope")
+
+
+@pytest.mark.parametrize("text,error,match", [
+    (None, DataError, "subject file not found"),
+    ("{not json", FormatError, "not valid JSON"),
+    ("[1, 2]", FormatError, "expected a JSON object"),
+    ('{"cones": {}}', FormatError, "missing field 'offsets'"),
+    ('{"offsets": [], "cones": {}}', FormatError, "offsets"),
+    ('{"offsets": {"l_thigh": [0, 0]}, "cones": {}}', FormatError, "offsets.l_thigh"),
+    ('{"offsets": {}, "cones": {"torso": [100, 90, 1, -1]}}', FormatError, "cones.torso"),
+])
+def test_bad_subject_files_name_the_file_and_field(tmp_path, text, error, match):
+    path = tmp_path / "s.json"
+    if text is not None:
+        path.write_text(text)
+    with pytest.raises(error, match=match) as err:
+        Subject.load(path)
+    assert "s.json" in str(err.value)

@@ -20,7 +20,6 @@ from swarmpose.fitness import (
 )
 from swarmpose.fitness.scene import demo_cameras, demo_frame
 from swarmpose.fitness.torch_backend import torch_available
-from swarmpose.render import render_silhouette
 
 #: The backends this machine can run (the torch backend needs PyTorch installed).
 USABLE_BACKENDS = [b for b in BACKENDS if b != "torch" or torch_available()]
@@ -66,8 +65,6 @@ def test_own_rendering_scores_one(model, true_pose, exact_scene):
     half = demo_frame(model, true_pose, cams, inflate=1.0, clutter=0, noise=0.0)
     fit = make_fitness("silhouette_edge", model).bind(half)
     assert fit.evaluate(true_pose[None], {"terms": "silhouette"})[0] == 1.0
-    sil = render_silhouette(model, true_pose, cams[2])
-    np.testing.assert_array_equal(sil, half.silhouettes[2])
 
 
 @pytest.mark.parametrize("options", OPTION_VARIANTS)
@@ -203,8 +200,8 @@ def test_silhouette_score_is_eq_5_5():
 
 # --------------------------------------------------------------------------- on a synthesised walk
 def test_walk_ik_pose_beats_2_sigma(walk):
-    """f_s at the IK pose of the ground truth is higher than at poses perturbed by 2 sigma, for the
-    median frame (real synthesised images of cmu_16_16_walk; the observation body is not the cone model)."""
+    """f_s at the IK pose of the ground truth is higher than at poses perturbed by 2 sigma, on every
+    frame (real synthesised images of cmu_16_16_walk; the observation body is not the cone model)."""
     rng = np.random.default_rng(5)
     fit = make_fitness("silhouette_edge", walk.model)
     diffs = []
@@ -213,29 +210,30 @@ def test_walk_ik_pose_beats_2_sigma(walk):
         pert = x + rng.normal(0.0, 2.0, (40, walk.model.n_params)) * walk.model.sigma
         fs_ik = fit.evaluate(x[None], {"terms": "silhouette"})[0]
         fs_p = fit.evaluate(pert, {"terms": "silhouette"})
-        assert 0.6 < fs_ik < 1.0
+        assert 0.85 < fs_ik < 0.95  # measured 0.897-0.904: the observation body is not the cones
+        assert (fs_p < fs_ik).mean() > 0.95  # measured: all 40 on every frame
         diffs.append(fs_ik - np.median(fs_p))
-    assert np.median(diffs) > 0
-    assert diffs[len(diffs) // 2] > 0  # the middle frame itself
+    assert min(diffs) > 0.1  # measured 0.146-0.186
 
 
 @pytest.mark.parametrize("scale,n_poses", [(4, 150), (1, 25)])
 def test_walk_backends_agree(walk, scale, n_poses):
-    """|f_s(numba) - f_s(reference)| and |f_e(...)| <= 1e-3 on random poses around the IK poses.
+    """On real synthesised images and random poses around the IK poses, numba and the reference count the same
+    pixels and edge samples exactly, and sum the same edge values (to float rounding).
     (The full 1000-pose run at 644x484 is in the report; here a subset keeps the suite fast.)"""
     rng = np.random.default_rng(scale)
     k = rng.integers(0, len(walk.ik), n_poses)
     poses = walk.ik[k] + rng.normal(0.0, 1.0, (n_poses, walk.model.n_params)) * walk.model.sigma
-    worst_s = worst_e = 0.0
     for f in np.unique(k):
         frame = walk.frames[f].downsample(scale)
         fast, ref = _fits(walk.model, frame)
         sel = poses[k == f]
-        fs_a, fe_a = fast.terms(sel)
-        fs_b, fe_b = ref.terms(sel)
-        worst_s = max(worst_s, float(np.abs(fs_a - fs_b).max()))
-        worst_e = max(worst_e, float(np.abs(fe_a - fe_b).max()))
-    assert worst_s <= 1e-3 and worst_e <= 1e-3
+        a, b = fast.measure(sel), ref.measure(sel)
+        np.testing.assert_array_equal(a.overlap, b.overlap)
+        np.testing.assert_array_equal(a.projected, b.projected)
+        np.testing.assert_array_equal(a.edge_count, b.edge_count)
+        np.testing.assert_allclose(a.edge_sum, b.edge_sum, atol=1e-9)
+        np.testing.assert_allclose(fast.evaluate(sel), ref.evaluate(sel), atol=1e-12)
 
 
 def _child_eval(fit, poses, queue):

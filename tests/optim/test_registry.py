@@ -85,12 +85,16 @@ def test_budget_is_exactly_the_papers(name, make_model):
         nonlocal counted
         counted += x.shape[0]
         assert np.all(x >= model.lower) and np.all(x <= model.upper)
-        assert isinstance(dict(opt.fitness_options), dict)
+        assert all(isinstance(k, str) for k in opt.fitness_options)  # options a fitness can read by name
         return f(x)
 
     res = optimize(opt, counting)
     assert counted == res.evaluations == opt.evaluations == PAPER_BUDGETS[name]
-    assert res.score > f(x0[None])[0] - 1e-9 or name.startswith("apf")
+    # every optimiser ends better than where it started (the APFs' estimate is the particles' weighted mean,
+    # whose score is the weighted mean of the particles' scores, not its own fitness)
+    assert f(res.x[None])[0] > f(x0[None])[0]
+    if not name.startswith("apf"):
+        assert res.score == f(res.x[None])[0]
 
 
 @pytest.mark.parametrize("name", sorted(PAPER_BUDGETS))

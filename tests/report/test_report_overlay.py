@@ -160,8 +160,6 @@ def test_gif_video(fake_results, tmp_path: Path, monkeypatch):
         assert im.size[0] == round((3 * 240 + 2 * 4) * 0.5)
 
 
-@pytest.mark.skipif(not any(v for k, v in video_backends().items() if k.startswith("mp4")),
-                    reason="no FFmpeg here (imageio-ffmpeg or OpenCV's)")
 def test_video_boxes_follow_the_person_smoothly(fake_results):
     from swarmpose.report.overlay import follow_boxes
 
@@ -186,6 +184,8 @@ def test_video_boxes_follow_the_person_smoothly(fake_results):
                                                                                    if np.isfinite(p).all())))
 
 
+@pytest.mark.skipif(not any(v for k, v in video_backends().items() if k.startswith("mp4")),
+                    reason="no FFmpeg here (imageio-ffmpeg or OpenCV's)")
 def test_mp4_video(fake_results, tmp_path: Path):
     import cv2
 

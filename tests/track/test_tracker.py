@@ -59,7 +59,7 @@ def test_tracking_starts_at_the_truth_and_stays_near_it(short_sequence, tmp_path
     setup = prepare_track(short_sequence, cfg, None)
     assert setup.ik_floor_mm < 5.0
     res = run_tracker(setup, 0, None)
-    assert res.errors["d_mean"] < 80.0, res.errors
+    assert res.errors["d_mean"] < 60.0, res.errors  # measured 35.9 mm (seed 3); 45.8 the worst of seeds 0-9
 
 
 def test_track_command_json(short_sequence, tmp_path):
@@ -521,3 +521,44 @@ def test_the_default_results_folder_names_every_setting_that_changes_the_results
                                                     fitness_options="terms=silhouette", motion="constant-velocity:0.5"))
     assert name == "walk-sppso-25fps-30frames-s3-ds2-deutscher_reid-budget_2000-terms_silhouette-constant-velocity_0.5"
     assert default_results_name("walk", TrackConfig(model="full45")) != default_results_name("walk", TrackConfig())
+
+
+def test_track_flags_reach_the_tracker(short_sequence, tmp_path):
+    """The --backend, --model, --fitness and --motion flags of `swarmpose track`, end to end on the short walk:
+    each lands in config.json and changes what is tracked as it should."""
+    from typer.testing import CliRunner
+
+    from swarmpose.cli.app import app
+
+    def track(name, *args):
+        res = CliRunner().invoke(app, ["track", str(short_sequence), "--workers", "1", "--no-progress", *args,
+                                       "--out", str(tmp_path / name), "--json"])
+        assert res.exit_code == 0, res.output
+        with np.load(tmp_path / name / "run_000" / "joints.npz", allow_pickle=False) as z:
+            joints = z["joints"]
+        return json.loads(res.stdout), json.loads((tmp_path / name / "config.json").read_text()), joints
+
+    # the plain-numpy reference backend counts the same pixels as numba, so the search is the same to the bit
+    # (one frame: the reference backend scores ~45 poses/s at 161x121)
+    common = ["--algo", "sppso", "--fps", "20", "--downsample", "4", "--max-frames", "1"]
+    ref, ref_cfg, ref_joints = track("ref", *common, "--backend", "reference")
+    fast, _, fast_joints = track("numba", *common, "--backend", "numba")
+    assert ref_cfg["backend"] == "reference"
+    np.testing.assert_array_equal(ref_joints, fast_joints)
+    assert ref["d_mean_mm"] == fast["d_mean_mm"] < 60.0
+    # the 45-parameter marker model (feet, hands, head) with AAPSO on the 2D markers
+    f45, f45_cfg, _ = track("full45", "--algo", "aapso", "--fps", "25", "--model", "full45", "--max-frames", "2")
+    assert f45_cfg["model"] == "full45" and f45_cfg["fitness_kind"] == "reprojection"
+    assert f45["d_mean_mm"] < 25.0  # measured 11.5 mm
+    # Deutscher & Reid's own fitness (eq. 17) under their APF
+    dr, dr_cfg, _ = track("dr", "--algo", "apf-dr05", "--fitness", "deutscher_reid", "--variant", "apf=50x3",
+                          "--fps", "20", "--downsample", "4", "--max-frames", "2")
+    assert dr_cfg["fitness_kind"] == "deutscher_reid" and dr["evals_per_frame"] == 150
+    assert dr["d_mean_mm"] < 60.0  # measured 16.7 mm
+    # the motion model: from the third frame on the search is centred elsewhere, so the estimate differs
+    common = ["--algo", "sppso", "--fps", "20", "--downsample", "4", "--max-frames", "3"]
+    _, zero_cfg, zero = track("zero", *common)
+    _, cv_cfg, cv = track("cv", *common, "--motion", "constant-velocity:0.5")
+    assert zero_cfg["motion"] == "zero-velocity" and cv_cfg["motion"] == "constant-velocity:0.5"
+    np.testing.assert_array_equal(cv[:2], zero[:2])
+    assert not np.array_equal(cv[2], zero[2])

@@ -120,6 +120,13 @@ class Subject:
 
     @classmethod
     def from_dict(cls, data: dict[str, Any], *, path: object = None) -> Subject:
+        if not isinstance(data, dict):
+            raise FormatError(f"expected a JSON object with 'offsets' and 'cones', got {type(data).__name__}",
+                              path=path)
+        for key in ("offsets", "cones"):
+            if key in data and not isinstance(data[key], dict):
+                raise FormatError(f"expected an object of name: numbers, got {type(data[key]).__name__}",
+                                  path=path, field=key)
         try:
             offsets = {str(k): _vec3(v, path, f"offsets.{k}") for k, v in data["offsets"].items()}
             cones = {str(k): _vec4(v, path, f"cones.{k}") for k, v in data["cones"].items()}

@@ -44,7 +44,7 @@ def demo(
     if summary is not None and summary.get("runs", 0) >= runs:
         check_results_folder(out, seq, config, runs, resume=True)  # other settings, fewer runs: refused, named
         err_console.print(f"[yellow]{escape(str(out))}/summary.json exists: reusing the tracked runs (delete the folder to "
-                          "redo)[/yellow]")
+                          f"redo){escape(_made_by_other_code(out))}[/yellow]")
     else:  # a fresh demo, an interrupted one (resumed) or more runs than a finished one (added)
         summary = track_runs(seq, config, runs, out, resume=(out / "config.json").is_file(), progress=not json_out)
     paths = make_report(out, overlay_frames=4)
@@ -62,6 +62,22 @@ def demo(
     console.print(f"  page:   {paths.html}  (self-contained: open in a browser)", markup=False, highlight=False)
     for p in [*paths.figures, *paths.overlays]:
         console.print(f"    {p}", markup=False, highlight=False)
+
+
+def _made_by_other_code(out: Path) -> str:
+    """``"; they were tracked by source X, this is Y"`` when the folder's config names other code, else ``""``."""
+    import json
+
+    from swarmpose.track.tracker import source_revision
+
+    try:
+        made = json.loads((out / "config.json").read_text()).get("versions", {}).get("swarmpose_git")
+    except (OSError, ValueError, AttributeError):
+        made = None
+    now = source_revision()
+    if now is None or made == now:
+        return ""
+    return f"; they were tracked by source {made[:12] if made else 'of unknown revision'}, this is {now[:12]}"
 
 
 def _finished(out: Path) -> dict | None:
