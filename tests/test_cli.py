@@ -204,3 +204,10 @@ def test_demo_names_other_code_when_it_reuses_a_folder(tmp_path: Path, monkeypat
     assert demo_module._made_by_other_code(tmp_path) == ""
     (tmp_path / "config.json").write_text(json.dumps({"versions": {}}))
     assert "unknown revision" in demo_module._made_by_other_code(tmp_path)
+
+
+def test_version():
+    from swarmpose import __version__
+
+    res = CliRunner().invoke(app, ["--version"])
+    assert res.exit_code == 0 and res.stdout.startswith(f"swarmpose {__version__}")

@@ -17,6 +17,25 @@ app = typer.Typer(
 )
 
 
+def _version(value: bool) -> None:
+    if value:
+        from swarmpose import __version__
+        from swarmpose.track.tracker import source_revision
+
+        rev = source_revision()
+        typer.echo(f"swarmpose {__version__}" + (f" (git {rev})" if rev else ""))
+        raise typer.Exit()
+
+
+@app.callback()
+def _root(
+    version: bool = typer.Option(False, "--version", callback=_version, is_eager=True,
+                                 help="Print the version (and the git revision of a checkout) and exit."),
+) -> None:
+    """Recover 3D human motion from several calibrated cameras by stochastic search (SPPSO, annealed particle
+    filter, adaptive annealed PSO)."""
+
+
 def main() -> None:
     """Entry point of the ``swarmpose`` script.
 

@@ -27,7 +27,8 @@ def _ints(text: str, name: str) -> list[int]:
 @fail_on_user_error
 def fitness(
     backends: str = typer.Option("auto", help="Comma-separated backends (numba, torch, reference); 'reference' "
-                                 "gives the ratios. auto: numba, torch where PyTorch is installed, reference."),
+                                 "gives the ratios. auto: numba, torch where PyTorch is installed, reference (the "
+                                 "slow one: a full run of the defaults takes a few minutes)."),
     scales: str = typer.Option("1,2,4", help="Downsampling factors of 644x484 (1 full, 2 half, 4 quarter, 8)."),
     batches: str = typer.Option("20,200", help="Batch sizes (poses per call)."),
     views: int = typer.Option(4, help="Number of camera views."),

@@ -24,7 +24,8 @@ from swarmpose.cli.common import (
 @fail_on_user_error
 def info(
     clip: Path = typer.Argument(..., help="A BVH motion-capture file.", exists=False),
-    unit: str = typer.Option(None, help="Source unit (mm, cm, m, inch, cmu) or mm per unit; inferred if omitted."),
+    unit: str = typer.Option(None, help="Source unit (mm, cm, m, inch, cmu = 56.444 mm: the CMU files' 1/0.45 inch) or mm per "
+                                   "unit; inferred from the skeleton's height if omitted."),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object instead of a table."),
 ) -> None:
     """Show a clip's frames, frame rate, duration, skeleton and unit scale.
@@ -131,7 +132,7 @@ def ik(
     model: str = typer.Option("balan31", help="Body model: a shipped name (balan31, full45) or a spec file."),
     fps: float = typer.Option(60.0, help="Frame rate to resample the clip to before fitting."),
     out: str = typer.Option(None, help="Write the fitted parameters, joints and errors here (.npz)."),
-    unit: str = typer.Option(None, help="Source unit or mm per unit; inferred if omitted."),
+    unit: str = typer.Option(None, help="Source unit (mm, cm, m, inch, cmu = 56.444 mm) or mm per unit; inferred if omitted."),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object instead of a summary."),
 ) -> None:
     """Fit the body model to the clip's 15 ground-truth joints frame by frame: the IK floor.

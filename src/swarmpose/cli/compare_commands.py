@@ -25,10 +25,13 @@ def compare(
     out: Path = typer.Option(None, help="Output folder (default results/compare/<suite>)."),
     downsample: int = typer.Option(1, help="Image downsampling: 1 (full resolution), 2, 4 or 8."),
     workers: int = typer.Option(None, min=1, help="Parallel local processes (default: one per core)."),
-    scheduler: str = typer.Option(None, help="Dask scheduler address: run the jobs on that cluster instead."),
+    scheduler: str = typer.Option(None, help="Dask scheduler address, e.g. tcp://host:8786: run the jobs on that "
+                                             "cluster instead (pip install 'swarmpose[dask]')."),
     resume: bool = typer.Option(False, help="Continue interrupted runs."),
-    max_frames: int = typer.Option(None, min=1, help="Only the first N frames of every entry: a quick try of a "
-                                                     "suite (the default --out then ends in -<N>frames)."),
+    max_frames: int = typer.Option(None, min=1, help="A quick try of a suite: N frames at the suite's lowest "
+                                                     "rate, and the same stretch of time at the others (about "
+                                                     "3N frames at 60 fps when the lowest is 20); the default "
+                                                     "--out then ends in -<N>frames."),
     list_only: bool = typer.Option(False, "--list", help="Only list the suite's entries (every suite's without "
                                                           "SUITE): algorithm, frame rate, variant, fitness, "
                                                           "evaluations per frame, paper; nothing is run."),

@@ -35,8 +35,8 @@ def demo(
     from swarmpose.track.tracker import TrackConfig
 
     if not Path(clip).is_file():
-        where = (": the shared data folder (../shared/data/mocap) must sit beside the repository"
-                 if Path(clip) == DEFAULT_CLIP else "")
+        where = (": the shared data folder (../shared/data/mocap) must sit beside the repository (an install "
+                 "outside the repository: pass --clip PATH/cmu_16_16_walk.bvh)" if Path(clip) == DEFAULT_CLIP else "")
         raise FileNotFoundError(f"demo clip {clip} not found{where}")
     seq = resolve_sequence(clip, progress=not json_out)
     config = TrackConfig(algo=algo, fps=fps, seed=seed)

@@ -39,32 +39,43 @@ def default_results_name(name: str, cfg: TrackConfig) -> str:
 @fail_on_user_error
 def track(
     source: str = typer.Argument(..., help="A sequence folder, a BVH clip (synthesised once into cache/), "
-                                           "or humaneva:PATH/S1/Walking_1."),
+                                           "humaneva:PATH/S1/Walking_1[?cams=...] or leewalk:PATH "
+                                           "(docs/datasets.md)."),
     algo: str = typer.Option("sppso", help="Algorithm name (see `swarmpose algorithms`)."),
-    fps: float = typer.Option(20.0, help="Tracking frame rate: the sequence is subsampled to it (60, 30, 20, 12...)."),
+    fps: float = typer.Option(20.0, help="Tracking frame rate, at most the sequence's: the sequence is subsampled "
+                                         "to it (60, 30, 20, 12...); a rate that does not divide the sequence's "
+                                         "(25 from 60) tracks the nearest frames."),
     runs: int = typer.Option(1, min=1, help="Independent runs (different random streams)."),
     seed: int = typer.Option(0, min=0, help="Seed (>= 0); run k draws from SeedSequence(\\[seed, k]) (recorded)."),
-    out: Path = typer.Option(None, help="Results folder (default results/<sequence>-<algo>-<fps>fps)."),
+    out: Path = typer.Option(None, help="Results folder (default results/<sequence>-<algo>-<fps>fps, followed by "
+                                        "every non-default setting that changes results: -s<seed>, -ds<N>, "
+                                        "model, fitness, variant, options, motion, -<N>frames)."),
     resume: bool = typer.Option(False, help="Continue an interrupted run in --out without redoing frames."),
     model: str = typer.Option("balan31", help="Body model name or spec file."),
     fitness: str = typer.Option(
         "auto", help="auto (silhouette_edge; reprojection for aapso*), silhouette_edge, deutscher_reid, "
                      "markers (Sharifi et al.'s epipolar score) or reprojection (robust, symmetric)."),
     variant: str = typer.Option(
-        "", help="Optimiser variant, as the compare suites use them: budget=B (SPPSO family: iterations x "
-                 "B/1000), stage2=PxI, global=PxI, hard, apf=PxL (particles x layers of an APF)."),
+        "", help="Optimiser variant, as the compare suites use them. budget=B: B evaluations per frame (1000, "
+                 "2000, ...; the SPPSO family's iterations x B/1000); stage2=PxI: SPPSO's second stage with P "
+                 "particles x I iterations; global=PxI: one PSO stage over all parameters; hard: each stage after the "
+                 "first holds the first stage's parameters fixed; apf=PxL: an APF with P particles x L layers "
+                 "(apf, apf-dr05)."),
     downsample: int = typer.Option(1, help="Image downsampling: 1 (full resolution), 2, 4 or 8 (faster, coarser)."),
     backend: str = typer.Option(
         "numba", help="Fitness backend: numba (default, all CPU cores), torch (PyTorch on the GPU when there is "
-                      "one, same results; pip install torch) or reference (plain numpy, slow)."),
+                      "one: numba's pixel and sample counts; pip install 'swarmpose[torch]') or reference "
+                      "(plain numpy, slow: the definition the fast backends are tested against)."),
     fitness_options: str = typer.Option(
-        "", help="Fitness options over each stage's own, key=value[,...]: terms=silhouette (no edge term), "
+        "", help="Fitness options, key=value[,...], applied on top of the options each optimiser stage sets "
+                 "(SPPSO's first stage scores torso edges only): terms=silhouette|edge (one term only), "
                  "edge_top=false (no torso top edge), edge_cones=all|torso|torso+upper."),
     features: str = typer.Option(
         "", help="Image feature settings, key=value[,...]: edge_threshold (Sobel magnitude / 4, default 40: "
-                 "keeps grey-level steps above 53 after the pre-smoothing), "
-                 "edge_dilate_px, edge_sigma_px, silhouette_threshold (default 25), silhouette_blur_px, "
-                 "silhouette_open_px, silhouette_close_px."),
+                 "keeps grey-level steps above 53 after the pre-smoothing), edge_dilate_px (silhouette "
+                 "dilation that masks the edges, default 7), edge_sigma_px (edge blur, default 2.0), "
+                 "silhouette_threshold (grey levels from the background, default 25), silhouette_blur_px "
+                 "(default 2), silhouette_open_px (default 3), silhouette_close_px (default 5)."),
     motion: str = typer.Option(
         "zero-velocity", help="Motion model that centres each frame's search: zero-velocity (the thesis's, "
                               "sec. 5.3.2) or constant-velocity\\[:D]\\[@GROUP+...] (moves on by D x the last "
@@ -72,17 +83,22 @@ def track(
                               "@root_position; an extension, not in the papers, and worse on the walk)."),
     max_frames: int = typer.Option(None, min=1, help="Track only the first N frames at --fps (a quick try; the "
                                                      "default --out then ends in -<N>frames)."),
-    workers: int = typer.Option(None, min=1, help="Parallel worker processes (default: one per core, at most --runs)."),
-    scheduler: str = typer.Option(None, help="Run on a Dask cluster at this address (dask.distributed)."),
+    workers: int = typer.Option(None, min=1, help="Parallel worker processes (default: one per core, at most --runs); "
+                                                  "each uses cores / workers numba threads."),
+    scheduler: str = typer.Option(None, help="Run on a Dask cluster at this address, e.g. tcp://host:8786 "
+                                             "(pip install 'swarmpose[dask]'; sequence and --out must be at the "
+                                             "same path on every worker)."),
     no_progress: bool = typer.Option(False, "--no-progress", help="No progress bars (for batch logs; --json "
                                                                    "implies it)."),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object with the summary."),
 ) -> None:
     """Track 3D motion frame by frame and measure it against the ground truth.
 
-    Writes a results folder: config.json (settings, seeds, versions), ik.npz (the IK floor), and per
+    Writes a results folder: config.json (settings, seeds, versions), subject.json (the body's
+    measurements), ik.npz (the IK floor), summary.json (means over the runs and the worst run), and per
     run run_XXX/ with joints.npz (joints, gt_joints, frame_times, world_from_source), track.npz
-    (parameters, fitness, evaluations, timings per frame) and summary.json.
+    (parameters, fitness, evaluations, timings per frame), summary.json and progress.npz (what
+    --resume continues from). `swarmpose report FOLDER` draws it.
     """
     from swarmpose.track.runner import connect_scheduler, resolve_sequence, track_runs
     from swarmpose.track.tracker import TrackConfig

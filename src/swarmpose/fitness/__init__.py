@@ -35,7 +35,7 @@ Factory
 
 and, for the image kinds, backends ``"numba"`` (default: fused numba kernels on all cores),
 ``"torch"`` (:class:`~swarmpose.fitness.torch_backend.TorchBackend`, the GPU path: the same
-measurements as batched PyTorch tensor code; needs ``pip install torch``) and ``"reference"`` (plain
+measurements as batched PyTorch tensor code; needs ``pip install 'swarmpose[torch]'``) and ``"reference"`` (plain
 numpy/OpenCV, slow, used by the tests). A backend is an entry in
 :data:`swarmpose.fitness.backends.BACKENDS` implementing ``prepare``/``measure``.
 

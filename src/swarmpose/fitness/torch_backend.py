@@ -1,4 +1,4 @@
-"""Optional PyTorch backend of the image fitness: the GPU path (``pip install torch``; runs on the CPU too).
+"""Optional PyTorch backend of the image fitness: the GPU path (``pip install 'swarmpose[torch]'``; runs on the CPU too).
 
 :class:`TorchBackend` computes the same :class:`~swarmpose.fitness.backends.Measurements` as the numba
 kernel, with the definitions of :mod:`swarmpose.render` (outline, pixel rule, occlusion, samples),
@@ -40,7 +40,8 @@ from swarmpose.render.project import DEFAULT_N_RIM, DEFAULT_NEAR_MM
 __all__ = ["TorchBackend", "torch_available", "import_torch"]
 
 _ANGLE_EPS = 1e-9  # as swarmpose.render._kernels
-_INSTALL = "pip install torch==2.13.0 (or another build for your GPU: https://pytorch.org/get-started)"
+_INSTALL = ("pip install 'swarmpose[torch]' (or first the PyTorch build for your GPU or CPU: "
+            "https://pytorch.org/get-started)")
 
 
 def torch_available() -> bool:
