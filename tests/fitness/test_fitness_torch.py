@@ -211,7 +211,7 @@ def test_bad_settings_are_named(model, monkeypatch):
     with pytest.raises(ConfigError, match="markers"):
         make_fitness("markers", model, backend="torch")
     monkeypatch.setitem(__import__("sys").modules, "torch", None)  # as if not installed
-    with pytest.raises(ConfigError, match="pip install torch"):
+    with pytest.raises(ConfigError, match=r"pip install .swarmpose\[torch\]."):
         make_fitness("silhouette_edge", model, backend="torch")
 
 

@@ -154,3 +154,36 @@ def test_a_folder_without_frame_times_is_taken_as_evenly_spaced(fake_results, tm
     assert out.exit_code == 0, out.output
     data = json.loads(out.stdout)
     assert data["frames"] == 6 and data["resampled"] is False
+
+
+def test_export_unit_and_rotation_order_flags(fake_results, tmp_path: Path):
+    """--unit cm writes every length in cm and --order XYZ every joint's channels in that order; the joints
+    still land where the model puts them."""
+    bvh = tmp_path / "cm.bvh"
+    out = CliRunner().invoke(app, ["export", str(fake_results[0]), "--out", str(bvh), "--unit", "cm", "--order", "XYZ",
+                                   "--json"])
+    assert out.exit_code == 0, out.output
+    data = json.loads(out.stdout)
+    assert data["unit"] == "cm" and data["rotation_order"] == "XYZ"
+    clip = read_bvh(bvh)
+    assert all(j.channels[-3:] == ("Xrotation", "Yrotation", "Zrotation") for j in clip.joints)
+    res = load_results(fake_results[0])
+    idx = [clip.joint_names.index(n) for n in res.model.spec.joint_names]
+    world_cm = clip.global_positions() @ bvh_axes(True)
+    np.testing.assert_allclose(world_cm[:, idx] * 10.0, res.model.joint_positions(res.run(0).params), atol=1e-2)
+    bad = CliRunner().invoke(app, ["export", str(fake_results[0]), "--out", str(tmp_path / "x.bvh"), "--unit", "inch"])
+    assert bad.exit_code == 2 and "--unit must be one of mm, cm, m" in " ".join(bad.output.split())
+
+
+def test_report_full_views_draws_whole_views(fake_results, tmp_path: Path):
+    """By default each view is cut to the person; --full-views keeps the whole 240-px views (3 views + 2 gaps)."""
+    from PIL import Image
+
+    widths = {}
+    for flag in ([], ["--full-views"]):
+        res = _copy(fake_results[0], tmp_path / ("full" if flag else "cut"))
+        out = CliRunner().invoke(app, ["report", str(res), "--frames", "1", *flag, "--json"])
+        assert out.exit_code == 0, out.output
+        with Image.open(json.loads(out.stdout)["overlays"][0]) as im:
+            widths[bool(flag)] = im.size[0]
+    assert widths[True] == 3 * 240 + 2 * 4 and widths[False] < widths[True]

@@ -481,6 +481,10 @@ def run_tracker(
             k = int(setup.frame_indices[i])
             observation = _frame_observation(seq, k, cfg.fitness_kind, cfg.downsample, backgrounds, feature_options)
             fitness.bind(observation if observe is None else observe(k, observation))
+            if i == start_k:  # compile the fitness kernels (numba: seconds on a fresh install) off the clock,
+                tw = time.perf_counter()  # so that frames/s is the tracking speed; the score is not used
+                fitness.evaluate(x_prev[None])
+                t0 += time.perf_counter() - tw
             x_pred = motion.predict(params[:i] if i >= 2 else x_prev[None], constraint, motion_mask)
             step = x_pred - x_prev
             if carry is not None and np.any(step):
