@@ -20,7 +20,7 @@ import numpy as np
 from swarmpose.errors import ShapeError
 from swarmpose.joints import JOINTS15
 
-__all__ = ["TrackErrors", "joint_distances", "valid_frames", "track_errors", "aggregate_runs", "MMTA_DELTA_MM"]
+__all__ = ["TrackErrors", "joint_distances", "valid_frames", "track_errors", "aggregate_runs", "spread_over_runs", "MMTA_DELTA_MM"]
 
 MMTA_DELTA_MM = 100.0
 
@@ -104,17 +104,22 @@ def track_errors(estimate: np.ndarray, truth: np.ndarray, delta_mm: float = MMTA
     )
 
 
+def spread_over_runs(d_means: Sequence[float]) -> float:
+    """Sample standard deviation (n - 1) of the runs' D_mean, mm: the runs are a sample of the tracker's
+    outcomes; 0 for a single run."""
+    return float(np.std(d_means, ddof=1)) if len(d_means) > 1 else 0.0
+
+
 def aggregate_runs(runs: Sequence[TrackErrors]) -> dict[str, object]:
     """Mean over runs of each measure, their spread, and the worst run (highest D_mean).
 
-    The spread ``d_mean_std_over_runs`` is the sample standard deviation of the runs' D_mean (n - 1 in
-    the denominator: the runs are a sample of the tracker's outcomes); 0 for a single run.
+    The spread ``d_mean_std_over_runs`` is :func:`spread_over_runs` of the runs' D_mean.
     """
     if not runs:
         raise ValueError("no runs to aggregate")
     keys = ("d_mean", "d_max", "d_std", "mmta", "mmtp", "mu", "sigma")
     out: dict[str, object] = {k: float(np.mean([getattr(r, k) for r in runs])) for k in keys}
-    out["d_mean_std_over_runs"] = float(np.std([r.d_mean for r in runs], ddof=1)) if len(runs) > 1 else 0.0
+    out["d_mean_std_over_runs"] = spread_over_runs([r.d_mean for r in runs])
     worst = max(range(len(runs)), key=lambda i: runs[i].d_mean)
     out["worst"] = {"run": worst, **{k: getattr(runs[worst], k) for k in keys}}
     out["per_joint"] = {n: float(np.mean([r.per_joint[n] for r in runs])) for n in JOINTS15}

@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from swarmpose.joints import JOINTS15
-from swarmpose.metrics import MMTA_DELTA_MM, track_errors
+from swarmpose.metrics import MMTA_DELTA_MM, spread_over_runs, track_errors
 from swarmpose.report.results import Results, as_results
 
 __all__ = ["write_summary", "run_rows"]
@@ -216,7 +216,7 @@ def write_summary(
                       _f(wr["mmtp_mm"]), _f(wr["frames_per_s"], ".2f")])
         spread = s.get("d_mean_std_over_runs")
         if spread is None:
-            spread = float(np.std([r["d_mean_mm"] for r in rows], ddof=1))  # as metrics.aggregate_runs
+            spread = spread_over_runs([r["d_mean_mm"] for r in rows])
     ik = res.ik_frame_error_mm
     ik_mean = s.get("ik_floor_mm", cfg.get("ik_floor_mm"))
     if ik_mean is None and ik is not None:
