@@ -76,6 +76,20 @@ def test_subject_round_trip(tmp_path):
     assert BodyModel(m.spec, s, m.variant).kin.offsets.tolist() == m.kin.offsets.tolist()
 
 
+def test_partial_subject_falls_back_but_unknown_names_are_refused():
+    spec = load_spec("balan31")
+    base = spec.default_subject
+    cone = next(iter(base.cones))
+    partial = Subject(name="p", offsets={}, cones={cone: (50.0, 40.0, 1.0, 1.0)})
+    m = BodyModel(spec, partial)
+    assert m.subject.cones[cone] == (50.0, 40.0, 1.0, 1.0)
+    assert m.subject.offsets == base.offsets  # what the file leaves out is the spec's default
+    with pytest.raises(ConfigError, match="cones that body model 'balan31' does not have: lower_arm_l"):
+        BodyModel(spec, Subject(name="typo", offsets={}, cones={"lower_arm_l": (40.0, 30.0, 1.0, 1.0)}))
+    with pytest.raises(ConfigError, match="offsets .* not have: knee"):
+        BodyModel(spec, Subject(name="typo", offsets={"knee": (0.0, 0.0, -400.0)}, cones={}))
+
+
 def test_unknown_model_and_variant():
     with pytest.raises(ConfigError, match="balan31"):
         load_spec("no_such_model")

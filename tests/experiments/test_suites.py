@@ -49,6 +49,19 @@ def test_aapso_global_and_hard_variants(model):
     assert all((s.active & torso).any() for s in base.stages[1:])  # soft: torso searched at sigma/10
 
 
+def test_sppso_global_variant_scores_the_whole_body(model):
+    """global=PxI on SPPSO: one stage over every searched parameter with the full-body fitness of its last
+    stage, as the registered pso-global (not stage 1's torso-only edges)."""
+    base = optim.get("sppso", model=model, fps=20.0)
+    glob = apply_variant(base, "global=25x40")
+    (stage,) = glob.stages
+    assert dict(stage.fitness_options) == dict(base.stages[-1].fitness_options) != dict(base.stages[0].fitness_options)
+    registered = optim.get("pso-global", model=model, fps=20.0).stages[0]
+    assert dict(stage.fitness_options) == dict(registered.fitness_options)
+    assert stage.active.tolist() == registered.active.tolist()
+    assert (stage.n_particles, stage.n_iterations) == (registered.n_particles, registered.n_iterations)
+
+
 def test_apf_particles_and_layers_variant(model):
     """Sharifi et al. sec. 4.10 ran Deutscher & Reid's APF with 700 particles x 5 layers."""
     cfg = apply_variant(optim.get("apf-dr05", model=model, fps=25.0), "apf=700x5")

@@ -10,6 +10,7 @@ from typer.testing import CliRunner
 from swarmpose.cli.app import app
 from swarmpose.fitness import torch_available
 from swarmpose.fitness.bench import time_call
+from swarmpose.fitness.scene import demo_cameras
 
 #: What --backends auto measures here.
 AUTO = ["numba", *(["torch"] if torch_available() else []), "reference"]
@@ -43,6 +44,22 @@ def test_table_and_errors():
     assert bad.exit_code == 2
     bad = CliRunner().invoke(app, ["bench", "fitness", "--scales", "0"])
     assert bad.exit_code == 2
+
+
+def test_views_option_sets_the_cameras(monkeypatch):
+    """--views N benchmarks N cameras: recorded in the settings and the table title; 0 is refused."""
+    import swarmpose.fitness.scene as scene
+
+    made = []
+    monkeypatch.setattr(scene, "demo_cameras", lambda n, **kw: made.append(n) or demo_cameras(n, **kw))
+    res = CliRunner().invoke(app, [*QUICK[:2], "--backends", "numba", *QUICK[2:], "--views", "2", "--json"])
+    assert res.exit_code == 0, res.output
+    assert json.loads(res.stdout)["settings"]["views"] == 2 and made and set(made) == {2}
+    res = CliRunner().invoke(app, [*QUICK[:2], "--backends", "numba", *QUICK[2:], "--views", "2"],
+                             env={"COLUMNS": "200"})
+    assert res.exit_code == 0 and "(2 views" in res.stdout and "2 raw 644x484 images" in res.stdout
+    bad = CliRunner().invoke(app, ["bench", "fitness", "--views", "0"])
+    assert bad.exit_code == 2 and "--views" in bad.output
 
 
 def test_time_call_warms_up_for_min_time_before_timing():

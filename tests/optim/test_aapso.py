@@ -75,3 +75,10 @@ def test_budget_constraint_and_determinism():
     assert opt.evaluations == 40
     assert all(np.array_equal(x, y) for (x, _), (y, _) in zip(a, b, strict=True))
     assert opt.best.x[0] > -0.5
+
+
+def test_no_valid_particle_reports_the_start_centre():
+    x0 = np.array([0.4, 0.1])
+    opt = AdaptiveAnnealedPSO(x0, np.ones(2), 6, 3, np.random.default_rng(0), constraint=lambda p: np.zeros(len(p), bool))
+    optimize(opt, sphere)
+    assert opt.evaluations == 18 and opt.best.score == -np.inf and opt.best.x.tolist() == x0.tolist()

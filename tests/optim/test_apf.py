@@ -148,6 +148,28 @@ def test_crossover_fraction_mixes_parents():
     assert abs(mixed(1.0) - 0.45) < 0.03
 
 
+@pytest.mark.parametrize("resampling", ["multinomial", "systematic"])
+def test_crossed_particles_are_a_random_share_of_the_set(monkeypatch, resampling):
+    """The crossover fraction is taken from anywhere in the resampled set. Systematic resampling returns its
+    pointers sorted; crossing its first rows would cross only the lowest-numbered particles."""
+    import swarmpose.optim.apf as apf_module
+
+    n = 2000
+    init = np.repeat(np.arange(n, dtype=float)[:, None], 3, axis=1)  # particle i is (i, i, i)
+    seen = []
+    real = apf_module.crossover
+    monkeypatch.setattr(apf_module, "crossover", lambda a, b, rng: seen.append(a[:, 0].copy()) or real(a, b, rng))
+    apf = AnnealedParticleFilter(init, np.zeros(3), 2, np.random.default_rng(3), crossover=0.25,
+                                 diffuse_first=False, resampling=resampling)
+    apf.ask()
+    apf.tell(np.zeros(n))  # uniform weights
+    apf.ask()
+    (a,) = seen
+    assert len(a) == 500
+    # uniform over 0..1999: mean 999.5, SD of the mean of 500 about 26; sorted first rows would give ~250
+    assert abs(a.mean() - 999.5) < 120 and a.min() < 200 and a.max() > 1800
+
+
 def test_constraint_violations_get_zero_weight():
     def constraint(p):
         return p[:, 0] > 0

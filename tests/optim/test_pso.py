@@ -112,12 +112,22 @@ def test_constraint_redraw_reduces_violations_and_best_is_valid():
 
 
 def test_invalid_particles_never_become_best():
-    # nothing is valid: the search still runs to its budget and best keeps score -inf
-    opt = ConstrictedPSO(
-        np.zeros(2), np.ones(2), 5, 3, np.random.default_rng(0), constraint=lambda p: np.zeros(len(p), bool)
-    )
+    # nothing is valid: the search still runs to its budget, best keeps score -inf and reports the start
+    # centre, not one of the invalid particles; a staged search hands that centre on to the next stage
+    x0 = np.array([0.3, -0.2])
+    opt = ConstrictedPSO(x0, np.ones(2), 5, 3, np.random.default_rng(0), constraint=lambda p: np.zeros(len(p), bool))
     optimize(opt, sphere)
-    assert opt.evaluations == 15 and opt.best.score == -np.inf
+    assert opt.evaluations == 15 and opt.best.score == -np.inf and opt.best.x.tolist() == x0.tolist()
+    stages = [Stage.from_groups(name, 2, [([0, 1], 1.0)], 4, 2) for name in ("a", "b")]
+    staged = StagedPSO(x0, np.ones(2), stages, np.random.default_rng(0), constraint=lambda p: np.zeros(len(p), bool))
+    centres = []
+    while not staged.done:
+        x = staged.ask()
+        if staged.stage_index == 1 and not centres:
+            centres.append(staged._current._x0.copy())  # where stage 2's swarm was drawn around
+        staged.tell(sphere(x))
+    assert centres[0].tolist() == x0.tolist()
+    assert staged.best.x.tolist() == x0.tolist() and staged.best.score == -np.inf
 
 
 def test_bounds_are_never_left():

@@ -189,3 +189,31 @@ def test_cli_synth_names_the_options(walk_clip_path, tmp_path):
     assert "captured at 120 Hz" in res.stderr and "interpolated" in res.stderr
     res = runner.invoke(app, [*base, "--out", str(tmp_path / "down"), "--fps", "60"])
     assert res.exit_code == 0 and "interpolated" not in res.stderr
+
+
+def test_cli_synth_no_occlusion_detects_the_hidden_markers(walk_clip_path, tmp_path):
+    """Without drop-outs, false detections or noise, ``--no-occlusion`` detects every marker inside the image;
+    the default loses the ones the body hides (the far arm and leg in a side view), never adds any."""
+    from swarmpose.io.sequence import open_sequence
+
+    runner = CliRunner()
+    base = ["synth", str(walk_clip_path), "--max-frames", "3", "--no-measure", "--no-progress", "--json",
+            "--dropout", "0", "--false-per-view", "0", "--marker-noise-px", "0"]
+    for name, extra in (("hidden", []), ("all", ["--no-occlusion"])):
+        res = runner.invoke(app, [*base, "--out", str(tmp_path / name), *extra])
+        assert res.exit_code == 0, res.output
+    with open_sequence(tmp_path / "hidden") as hidden, open_sequence(tmp_path / "all") as everything:
+        assert everything.provenance["settings"]["markers"]["occlusion"] is False
+        assert hidden.provenance["settings"]["markers"]["occlusion"] is True
+        n_hidden = n_all = 0
+        for k in range(3):
+            for v, (ids_h, ids_a, pts_a) in enumerate(zip(hidden.marker_ids(k), everything.marker_ids(k),
+                                                          everything.markers(k), strict=True)):
+                w, h = everything.cameras[v].width, everything.cameras[v].height
+                inside = (pts_a[:, 0] >= 0) & (pts_a[:, 0] < w) & (pts_a[:, 1] >= 0) & (pts_a[:, 1] < h)
+                assert inside.all() and len(set(ids_a.tolist())) == len(ids_a)
+                assert set(ids_h.tolist()) <= set(ids_a.tolist())
+                n_hidden += len(ids_h)
+                n_all += len(ids_a)
+        assert n_all == 3 * 4 * 15  # the walk stays inside every view: all 15 joints everywhere
+        assert 0.7 * n_all < n_hidden < n_all, (n_hidden, n_all)  # 164 of 180 here

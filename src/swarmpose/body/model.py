@@ -72,7 +72,8 @@ class BodyModel:
     Parameters
     ----------
     spec : the body-model specification (see :func:`swarmpose.body.spec.load_spec`).
-    subject : measurements; missing entries fall back to the spec's default subject.
+    subject : measurements; missing entries fall back to the spec's default subject, names the spec does
+        not have are refused (a typo would otherwise be ignored).
     variant : name of a cone variant in the spec (e.g. ``"thesis"``: the modifications of thesis
         sec. 5.1.2) or ``None`` for the unmodified cones.
     """
@@ -81,6 +82,12 @@ class BodyModel:
         self.spec = spec
         base = spec.default_subject
         subject = subject or base
+        for kind, given, known in (("offset", subject.offsets, base.offsets), ("cone", subject.cones, base.cones)):
+            unknown = sorted(set(given) - set(known))
+            if unknown:
+                where = f" ({subject.source})" if subject.source else ""
+                raise ConfigError(f"subject {subject.name!r}{where} has {kind}s that body model {spec.name!r} does "
+                                  f"not have: {', '.join(unknown)} (known: {', '.join(known)})")
         offsets = {**base.offsets, **subject.offsets}
         cones = {**base.cones, **subject.cones}
         self.subject = Subject(name=subject.name, offsets=offsets, cones=cones, source=subject.source)

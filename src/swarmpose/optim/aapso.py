@@ -48,6 +48,7 @@ from .base import (
 from .operators import (
     aapso_alpha,
     aapso_velocity,
+    best_or_start,
     global_best,
     redraw_invalid,
     sample_normal,
@@ -136,7 +137,8 @@ class AdaptiveAnnealedPSO(Optimizer):
     def best(self) -> Candidate:
         if self._k == 0:
             raise RuntimeError("no scores told yet; ask() and tell() first")
-        return Candidate(self._pbest_x[self._g].copy(), float(self._pbest_s[self._g]), self.evaluations)
+        x, score = best_or_start(self._pbest_x, self._pbest_s, self._g, self._x0)
+        return Candidate(x, score, self.evaluations)
 
     @property
     def fitness_options(self) -> Mapping[str, Any]:

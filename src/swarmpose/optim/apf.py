@@ -351,6 +351,8 @@ class AnnealedParticleFilter(Optimizer):
             # step 4: draw N particles in proportion to pi; a fraction by crossover (eq. 19)
             n_cross = int(round(self._crossover * self._n))
             idx = self._resample(self._weights, self._n, rng)
+            if n_cross > 0 and self._resample is resample_systematic:
+                idx = rng.permutation(idx)  # its pointers come out sorted; the crossed rows must be any rows
             parents = self._x[idx]
             if n_cross > 0:
                 mates = self._x[self._resample(self._weights, n_cross, rng)]

@@ -33,6 +33,7 @@ __all__ = [
     "find_beta",
     "fixed_diffusion",
     "global_best",
+    "best_or_start",
     "kernel_bandwidth",
     "linear_coefficients",
     "redraw_invalid",
@@ -174,6 +175,14 @@ def update_personal_best(
 def global_best(pbest_s: np.ndarray) -> int:
     """Index of the global best (gbest topology; first index on ties)."""
     return int(np.argmax(pbest_s))
+
+
+def best_or_start(pbest_x: np.ndarray, pbest_s: np.ndarray, g: int, start: np.ndarray) -> tuple[np.ndarray, float]:
+    """The swarm's global best ``(x, score)``; the start centre ``start`` (score ``-inf``) while no valid
+    particle has been scored, so that an invalid pose is never handed on as the estimate."""
+    if np.isneginf(pbest_s[g]):
+        return start.copy(), float("-inf")
+    return pbest_x[g].copy(), float(pbest_s[g])
 
 
 def sample_normal(mean: np.ndarray, sigma: np.ndarray, n: int, rng: np.random.Generator) -> np.ndarray:

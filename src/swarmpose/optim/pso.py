@@ -20,7 +20,8 @@ Deviations, stated plainly:
 * **After the last re-draw.** The thesis does not say what happens when all 10 re-draws violate the
   constraints. We keep the last move (Algorithm 2 read literally), clip it into the bounds, and mark the
   particle *invalid* for this iteration: its score is not allowed to become a personal or global best, so
-  the estimate always satisfies the constraints whenever any evaluated particle did.
+  the estimate always satisfies the constraints whenever any evaluated particle did. When none did, the
+  stage reports its start centre ``x_hat`` (score ``-inf``) rather than an invalid particle.
 * **Start positions** that violate the constraints are re-drawn from eq. 5.10 in the same way (Algorithm 2
   does not mention it; it keeps the initial swarm inside the hard priors).
 """
@@ -47,6 +48,7 @@ from .base import (
     frozen_options,
 )
 from .operators import (
+    best_or_start,
     clamp_velocity,
     constricted_velocity,
     constriction,
@@ -191,7 +193,8 @@ class ConstrictedPSO(Optimizer):
     def best(self) -> Candidate:
         if self._k == 0:
             raise RuntimeError("no scores told yet; ask() and tell() first")
-        return Candidate(self._pbest_x[self._g].copy(), float(self._pbest_s[self._g]), self.evaluations)
+        x, score = best_or_start(self._pbest_x, self._pbest_s, self._g, self._x0)
+        return Candidate(x, score, self.evaluations)
 
     @property
     def fitness_options(self) -> Mapping[str, Any]:

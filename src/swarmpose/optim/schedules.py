@@ -198,6 +198,12 @@ def aapso_stages(model: Any) -> tuple[Stage, ...]:
     the torso at sigma / 10 ("a trivial search about the result of stage one"); all other parameters held.
     80 particles x 10 iterations in stages 1-5, 30 x 10 in stage 6. The paper's fitness (markers) has no
     per-stage options.
+
+    Deviation: the paper's stage 1 has "six parameters related to global position and orientation of
+    torso" and none of its six stages names a spine. A model with spine joints (balan31 x27-x28, full45's
+    trunk) puts them in stage 1 with the root (the spine carries the shoulders and head, whose markers
+    stage 1 scores) and holds them to sigma / 10 with the root afterwards; without it they would never
+    be searched.
     """
     d = _dim(model)
     rot, pos = _root(model)
