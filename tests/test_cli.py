@@ -222,14 +222,15 @@ def test_ik_fits_the_model_it_is_given(mocap_dir: Path, tmp_path: Path):
     runner = CliRunner()
     floors = {}
     spec_file = tmp_path / "my_model.json"
-    spec_file.write_text((resources.files("swarmpose.models") / "balan31.json").read_text())
-    for model in ("balan31", "full45", str(spec_file)):
-        res = runner.invoke(app, ["ik", clip, "--model", model, "--fps", "10", "--json"])
+    spec = json.loads((resources.files("swarmpose.models") / "balan31.json").read_text())
+    spec_file.write_text(json.dumps({**spec, "name": "my_balan"}))
+    for model, name in (("balan31", "balan31"), ("full45", "full45"), (str(spec_file), "my_balan")):
+        res = runner.invoke(app, ["ik", clip, "--model", model, "--fps", "5", "--json"])
         assert res.exit_code == 0, res.output
         data = json.loads(res.stdout)
         floors[model] = data["ik_floor_mm"]["mean"]
-        assert data["frames"] == 14
-    assert floors["full45"] < 0.5 < floors["balan31"] < 3.0  # 0.10 and 1.29 mm here
-    assert floors[str(spec_file)] == floors["balan31"]  # the same spec read from a file
+        assert data["frames"] == 7 and data["model"] == name
+    assert floors["full45"] < 0.5 < floors["balan31"] < 3.0  # 0.10 and 1.29 mm at 10 fps
+    assert floors[str(spec_file)] == floors["balan31"]  # the same tree and cones, read from a file
     bad = runner.invoke(app, ["ik", clip, "--model", "nosuch"])
     assert bad.exit_code == 2 and "balan31" in bad.output and "full45" in bad.output

@@ -23,6 +23,7 @@ PAPER_BUDGETS = {
     "hard2": 10 * 20 + 20 * 40,  # Fleischmann 2012, sec. 6.6 (SPPSO with x1-x6 fixed in stage 2)
     "hpso12": 12 * 10 * 60,  # Fleischmann 2012, sec. 6.6: 7200 evaluations
     "apf": 200 * 5,  # HumanEva APF, Fleischmann 2012 Table 4.3
+    "apf-adaptive": 200 * 5,  # the HumanEva APF's budget with Deutscher & Reid's eq. 18-19 (thesis 4.4.4)
     "apf-dr05": 200 * 10,  # Deutscher & Reid 2005, sec. 3.1 and Fig. 9-10
     "aapso": 5 * 80 * 10 + 30 * 10,  # Sharifi et al. 2017, sec. 4.2
     "aapso-fixed": 5 * 80 * 10 + 30 * 10,
@@ -118,12 +119,18 @@ def test_same_seed_same_asks(name, balan31):
 
 def test_thesis_frame_rate_scaling(balan31):
     twist = balan31.group("head_twist")
-    for name in ("sppso", "pso-global", "hpso12", "apf"):
+    for name in ("sppso", "pso-global", "hpso12", "apf", "apf-adaptive"):
         s60 = get(name, model=balan31, fps=60).sigma
-        fixed = twist if name == "apf" else []  # the HumanEva APF holds x31 fixed by sigma 0 (thesis 6.1)
+        fixed = twist if name.startswith("apf") else []  # the thesis's APFs hold x31 fixed by sigma 0 (thesis 6.1)
         assert np.allclose(s60, np.where(np.isin(np.arange(31), fixed), 0.0, balan31.sigma))
         assert np.allclose(get(name, model=balan31, fps=20).sigma, 3 * s60)  # thesis 5.3.2
     assert np.allclose(get("apf-dr05", model=balan31, fps=60).sigma, 0.5 * balan31.sigma)  # DR05 3.1
+    fixed, adaptive = get("apf", model=balan31, fps=20), get("apf-adaptive", model=balan31, fps=20)
+    assert (fixed.diffusion, fixed.crossover, adaptive.diffusion, adaptive.crossover) == ("fixed", 0.0, "adaptive", 0.5)
+    for f in dataclasses.fields(fixed):  # otherwise the same configuration: particles, layers, Sigma, bounds
+        if f.name not in ("name", "reference", "diffusion", "crossover"):
+            a, b = getattr(fixed, f.name), getattr(adaptive, f.name)
+            assert (np.array_equal(a, b) if isinstance(a, np.ndarray) else a == b), f.name
     assert list(twist) == [30]
 
 

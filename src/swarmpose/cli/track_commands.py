@@ -60,7 +60,7 @@ def track(
                  "2000, ...; the SPPSO family's iterations x B/1000); stage2=PxI: SPPSO's second stage with P "
                  "particles x I iterations; global=PxI: one PSO stage over all parameters; hard: each stage after the "
                  "first holds the first stage's parameters fixed; apf=PxL: an APF with P particles x L layers "
-                 "(apf, apf-dr05)."),
+                 "(apf, apf-adaptive, apf-dr05)."),
     downsample: int = typer.Option(1, help="Image downsampling: 1 (full resolution), 2, 4 or 8 (faster, coarser)."),
     backend: str = typer.Option(
         "numba", help="Fitness backend: numba (default, all CPU cores), torch (PyTorch on the GPU when there is "

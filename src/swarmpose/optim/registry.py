@@ -16,6 +16,7 @@ hard2          1000   [FL12] sec. 6.6: sppso with x1-x6 fixed in stage 2
 hpso12         7200   John et al. 2010 as run in [FL12] sec. 6.6: 12 hard partitions x 10 x 60
 apf            1000   HumanEva APF ([FL12] Table 4.3: 200 particles x 5 layers), fixed schedule eq. 13
 apf-dr05       2000   [DR05] sec. 3.1, Fig. 9-10: 200 particles x 10 layers, adaptive (6.1), crossover
+apf-adaptive   1000   the apf set-up (200 x 5, Sigma as SPPSO, x31 fixed) with [DR05] eq. 18-19: [FL12] 4.4.4
 aapso          4300   [SH17] sec. 4.2: 5 stages x 80 x 10 + 30 x 10; eq. 18
 aapso-fixed    4300   [SH17] as aapso with eq. 16 (the authors' earlier version, sec. 4.9)
 =============  =====  ===========================================================================
@@ -430,6 +431,8 @@ REF_HARD2 = "Fleischmann 2012, sec. 6.6 (Fig. 6.10: SPPSO with x1-x6 fixed in st
 REF_HPSO12 = "John, Trucco & Ivekovic 2010 (HPSO) as run in Fleischmann 2012, sec. 6.6 (Fig. 6.14), Table 4.3"
 REF_APF = "Sigal, Balan & Black 2010 / Balan et al. 2005 (HumanEva APF, 200 x 5) as in Fleischmann 2012, Table 4.3, sec. 6.5; Deutscher & Reid 2005, sec. 3, eq. 13"
 REF_APF_DR05 = "Deutscher & Reid 2005, sec. 3.1 (10 layers, alpha = 0.5), Fig. 9-10 (200 particles), sec. 6.1-6.2 (eq. 18-19)"
+REF_APF_ADAPTIVE = ("Fleischmann 2012, sec. 4.4.4 (HumanEva's baseline as Deutscher & Reid's improved APF) and 6.5; "
+                    "Deutscher & Reid 2005, sec. 6.1-6.2 (eq. 18-19)")
 REF_AAPSO = "Sharifi, Harati & Vahedian 2017, sec. 3.4 (eq. 15-18), sec. 4.2"
 REF_AAPSO_FIXED = "Sharifi, Harati & Vahedian 2017, sec. 3.4 (eq. 16, the initial version), sec. 4.2, 4.9"
 
@@ -549,6 +552,15 @@ register(
     reference=REF_APF,
     evals_per_frame=1000,
     summary="HumanEva's annealed particle filter (200 particles x 5 layers, fixed diffusion, no crossover)",
+)
+register(
+    "apf-adaptive",
+    _apf("apf-adaptive", REF_APF_ADAPTIVE, n_particles=200, n_layers=5, alpha=0.5, diffusion="adaptive",
+         crossover=0.5),
+    reference=REF_APF_ADAPTIVE,
+    evals_per_frame=1000,
+    summary="the apf baseline (200 x 5, the thesis's Sigma, x31 fixed) with Deutscher & Reid's adaptive diffusion "
+            "and crossover: HumanEva's baseline as thesis sec. 4.4.4 describes it",
 )
 register("apf-dr05", _apf_dr05, reference=REF_APF_DR05, evals_per_frame=2000,
          summary="Deutscher & Reid's annealed particle filter with adaptive diffusion and crossover "
