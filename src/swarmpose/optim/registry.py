@@ -15,8 +15,8 @@ pso-global     1000   [FL12] sec. 6.6: one stage, 25 x 40
 hard2          1000   [FL12] sec. 6.6: sppso with x1-x6 fixed in stage 2
 hpso12         7200   John et al. 2010 as run in [FL12] sec. 6.6: 12 hard partitions x 10 x 60
 apf            1000   HumanEva APF ([FL12] Table 4.3: 200 particles x 5 layers), fixed schedule eq. 13
-apf-dr05       2000   [DR05] sec. 3.1, Fig. 9-10: 200 particles x 10 layers, adaptive (6.1), crossover
 apf-adaptive   1000   the apf set-up (200 x 5, Sigma as SPPSO, x31 fixed) with [DR05] eq. 18-19: [FL12] 4.4.4
+apf-dr05       2000   [DR05] sec. 3.1, Fig. 9-10: 200 particles x 10 layers, adaptive (6.1), crossover
 aapso          4300   [SH17] sec. 4.2: 5 stages x 80 x 10 + 30 x 10; eq. 18
 aapso-fixed    4300   [SH17] as aapso with eq. 16 (the authors' earlier version, sec. 4.9)
 =============  =====  ===========================================================================
