@@ -83,3 +83,61 @@ def test_numba_collisions_match_the_numpy_reference(model, priors):
     ref = priors.collisions_reference(poses)
     assert np.array_equal(fast, ref)
     assert fast.any() and not fast.all()
+
+
+@pytest.fixture(scope="module")
+def tilted_model(walk_clip_path):
+    """The walk's subject: its torso leans back from the pelvis to the shoulders (axis not along z)."""
+    from swarmpose.body.subject import subject_from_clip
+    from swarmpose.io.mocap import load_clip
+
+    base = load_model("balan31")
+    model = base.with_subject(subject_from_clip(base.spec, load_clip(walk_clip_path, fps=30)))
+    t = model.cone_arrays.names.index("torso")
+    tilt = model.cone_arrays.end[t, :2] - model.cone_arrays.start[t, :2]
+    assert np.hypot(*tilt) > 15.0  # mm off the frame's z axis at the top
+    return model
+
+
+def _inside_by_linear_solve(priors, poses):
+    """Independent oracle: solve ``d = s * axis + u * e_x + v * e_y`` for every sphere of B."""
+    model = priors.model
+    cones = model.cones(poses)
+    ca = model.cone_arrays
+    keep = 1.0 - priors.penetration_tolerance
+    f = priors._frac
+    out = np.zeros((len(poses), len(model.spec.collision_pairs)), dtype=bool)
+    for i, (na, nb) in enumerate(model.spec.collision_pairs):
+        a, b = ca.names.index(na), ca.names.index(nb)
+        for n in range(len(poses)):
+            basis = np.column_stack([cones.end[n, a] - cones.start[n, a], cones.axis_x[n, a], cones.axis_y[n, a]])
+            for m, fm in enumerate(f):
+                rb = 0.5 * (cones.semi_x[b] + cones.semi_y[b])
+                rho = rb[0] + (rb[1] - rb[0]) * fm
+                centre = cones.start[n, b] + fm * (cones.end[n, b] - cones.start[n, b])
+                s, u, v = np.linalg.solve(basis, centre - cones.start[n, a])
+                if not 0.0 <= s <= 1.0:
+                    continue
+                semi_x = cones.semi_x[a, 0] + (cones.semi_x[a, 1] - cones.semi_x[a, 0]) * s
+                semi_y = cones.semi_y[a, 0] + (cones.semi_y[a, 1] - cones.semi_y[a, 0]) * s
+                if (u / (keep * (semi_x + rho))) ** 2 + (v / (keep * (semi_y + rho))) ** 2 < 1.0:
+                    out[n, i] = True
+                    break
+    return out
+
+
+def test_collision_volume_follows_a_tilted_torso_axis(tilted_model):
+    """Cross-sections are centred on the leaning axis, as the renderer draws the cone: the test agrees
+    with a linear-solve oracle, also for forearms near the torso's top (where the lean is largest)."""
+    priors = HardPriors(tilted_model)
+    rng = np.random.default_rng(4)
+    x0 = tilted_model.zero_pose()
+    x0[tilted_model.param_index("pelvis_tz")] = 1000.0
+    arms = [tilted_model.param_index(n) for n in tilted_model.param_names if "shoulder" in n or "elbow" in n]
+    poses = np.repeat(x0[None], 300, axis=0)
+    poses[:, arms] += rng.normal(scale=1.0, size=(300, len(arms)))
+    expected = _inside_by_linear_solve(priors, poses)
+    assert np.array_equal(priors.collisions_reference(poses), expected)
+    assert np.array_equal(priors.collisions(poses), expected)
+    forearm_hits = expected[:, :2]
+    assert forearm_hits.any() and not forearm_hits.all()

@@ -6,11 +6,14 @@ particle's velocity is re-drawn up to 10 times; HumanEva's APF drops such partic
 Inter-penetration follows the idea of PARSEC bodytrack (a cone approximated by a chain of spheres)
 with one refinement for elliptical cones: for each collision pair ``(A, B)`` the sphere chain of
 ``B`` is tested against the *volume* of ``A`` (its elliptical cross-section interpolated along the
-axis), so an arm hanging beside the broad torso is fine while an arm through it is not. A sphere
-of radius ``rho`` centred at local ``(x, y, z)`` of ``A`` collides when ``0 <= z <= L`` and
-``(x / a')**2 + (y / b')**2 < 1`` with ``a' = (1 - tol) * (a(z) + rho)`` (``b'`` alike): ``tol`` is
-the fraction of the summed radii two surfaces may sink into each other before it counts (soft
-tissue, clothing and the coarseness of cones; default 0.5).
+axis), so an arm hanging beside the broad torso is fine while an arm through it is not. ``A``'s
+volume is the one the renderer draws: elliptical cross-sections in the plane of its joint frame's x
+and y axes, centred on the cone's axis, which may be tilted in that frame (the torso's leans from the
+pelvis towards the shoulders). A sphere of radius ``rho`` centred at ``start + s * (end - start) +
+x * e_x + y * e_y`` collides when ``0 <= s <= 1`` and ``(x / a')**2 + (y / b')**2 < 1`` with
+``a' = (1 - tol) * (a(s) + rho)`` (``b'`` alike): ``tol`` is the fraction of the summed radii two
+surfaces may sink into each other before it counts (soft tissue, clothing and the coarseness of cones;
+default 0.5).
 """
 
 from __future__ import annotations
@@ -52,6 +55,11 @@ class HardPriors:
         names = self.model.cone_arrays.names
         self._pairs = np.array([(names.index(a), names.index(b)) for a, b in self.model.spec.collision_pairs],
                                dtype=np.int64).reshape(-1, 2)
+        ca = self.model.cone_arrays
+        for a in np.unique(self._pairs[:, 0]):
+            if abs(ca.end[a, 2] - ca.start[a, 2]) < 1e-6:
+                raise ConfigError(f"collision cone {names[a]!r} lies in its joint frame's x-y plane; its "
+                                  "cross-sections (in that plane) would not span a volume")
         self._frac = np.linspace(0.0, 1.0, self.spheres_per_cone)
 
     def __call__(self, poses: np.ndarray) -> np.ndarray:
@@ -93,20 +101,20 @@ class HardPriors:
             rb = 0.5 * (cones.semi_x[b] + cones.semi_y[b])
             rho = rb[0] + (rb[1] - rb[0]) * f
             centres = cones.start[:, b, None] + (cones.end[:, b] - cones.start[:, b])[:, None] * f[None, :, None]
-            # B's centres in A's local frame
+            # B's centres as start + s * axis + x * e_x + y * e_y of A (cross-sections in A's frame x-y plane)
             axis = cones.end[:, a] - cones.start[:, a]
-            length = np.linalg.norm(axis, axis=-1)  # (N,)
-            ez = axis / length[:, None]
+            normal = np.cross(cones.axis_x[:, a], cones.axis_y[:, a])
             d = centres - cones.start[:, a, None]
-            z = np.einsum("nmk,nk->nm", d, ez)
-            x = np.einsum("nmk,nk->nm", d, cones.axis_x[:, a])
-            y = np.einsum("nmk,nk->nm", d, cones.axis_y[:, a])
-            s = np.clip(z / length[:, None], 0.0, 1.0)
-            sa = ca.radii[a, 0] * ca.scale[a, 0] + (ca.radii[a, 1] - ca.radii[a, 0]) * ca.scale[a, 0] * s
-            sb = ca.radii[a, 0] * ca.scale[a, 1] + (ca.radii[a, 1] - ca.radii[a, 0]) * ca.scale[a, 1] * s
+            s = np.einsum("nmk,nk->nm", d, normal) / np.einsum("nk,nk->n", axis, normal)[:, None]
+            r = d - s[..., None] * axis[:, None]
+            x = np.einsum("nmk,nk->nm", r, cones.axis_x[:, a])
+            y = np.einsum("nmk,nk->nm", r, cones.axis_y[:, a])
+            sc = np.clip(s, 0.0, 1.0)
+            sa = ca.radii[a, 0] * ca.scale[a, 0] + (ca.radii[a, 1] - ca.radii[a, 0]) * ca.scale[a, 0] * sc
+            sb = ca.radii[a, 0] * ca.scale[a, 1] + (ca.radii[a, 1] - ca.radii[a, 0]) * ca.scale[a, 1] * sc
             ax_ = tol * (sa + rho)
             by_ = tol * (sb + rho)
-            inside = ((x / ax_) ** 2 + (y / by_) ** 2 < 1.0) & (z >= 0.0) & (z <= length[:, None])
+            inside = ((x / ax_) ** 2 + (y / by_) ** 2 < 1.0) & (s >= 0.0) & (s <= 1.0)
             out[:, i] = inside.any(axis=1)
         return out
 
@@ -150,9 +158,8 @@ def _collisions_kernel(T, joint, start, end, radii, scale, pairs, frac, keep, ou
                 ea[r] = Ta[r, 3] + Ta[r, 0] * end[a, 0] + Ta[r, 1] * end[a, 1] + Ta[r, 2] * end[a, 2]
                 sb[r] = Tb[r, 3] + Tb[r, 0] * start[b, 0] + Tb[r, 1] * start[b, 1] + Tb[r, 2] * start[b, 2]
                 eb[r] = Tb[r, 3] + Tb[r, 0] * end[b, 0] + Tb[r, 1] * end[b, 1] + Tb[r, 2] * end[b, 2]
-            ax = ea - sa
-            length = np.sqrt(ax[0] ** 2 + ax[1] ** 2 + ax[2] ** 2)
-            ez = ax / length
+            # axis . e_z of A's frame: the axis's rise out of the cross-section plane (checked non-zero)
+            rise = (ea[0] - sa[0]) * Ta[0, 2] + (ea[1] - sa[1]) * Ta[1, 2] + (ea[2] - sa[2]) * Ta[2, 2]
             rb0 = 0.5 * (radii[b, 0] * scale[b, 0] + radii[b, 0] * scale[b, 1])
             rb1 = 0.5 * (radii[b, 1] * scale[b, 0] + radii[b, 1] * scale[b, 1])
             hit = False
@@ -162,12 +169,14 @@ def _collisions_kernel(T, joint, start, end, radii, scale, pairs, frac, keep, ou
                 d0 = sb[0] + (eb[0] - sb[0]) * f - sa[0]
                 d1 = sb[1] + (eb[1] - sb[1]) * f - sa[1]
                 d2 = sb[2] + (eb[2] - sb[2]) * f - sa[2]
-                z = d0 * ez[0] + d1 * ez[1] + d2 * ez[2]
-                if z < 0.0 or z > length:
+                s = (d0 * Ta[0, 2] + d1 * Ta[1, 2] + d2 * Ta[2, 2]) / rise
+                if s < 0.0 or s > 1.0:
                     continue
-                x = d0 * Ta[0, 0] + d1 * Ta[1, 0] + d2 * Ta[2, 0]
-                y = d0 * Ta[0, 1] + d1 * Ta[1, 1] + d2 * Ta[2, 1]
-                s = min(max(z / length, 0.0), 1.0)
+                r0 = d0 - s * (ea[0] - sa[0])
+                r1 = d1 - s * (ea[1] - sa[1])
+                r2 = d2 - s * (ea[2] - sa[2])
+                x = r0 * Ta[0, 0] + r1 * Ta[1, 0] + r2 * Ta[2, 0]
+                y = r0 * Ta[0, 1] + r1 * Ta[1, 1] + r2 * Ta[2, 1]
                 ra = radii[a, 0] + (radii[a, 1] - radii[a, 0]) * s
                 axl = keep * (ra * scale[a, 0] + rho)
                 byl = keep * (ra * scale[a, 1] + rho)
