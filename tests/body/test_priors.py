@@ -111,7 +111,7 @@ def _inside_by_linear_solve(priors, poses):
         a, b = ca.names.index(na), ca.names.index(nb)
         for n in range(len(poses)):
             basis = np.column_stack([cones.end[n, a] - cones.start[n, a], cones.axis_x[n, a], cones.axis_y[n, a]])
-            for m, fm in enumerate(f):
+            for fm in f:
                 rb = 0.5 * (cones.semi_x[b] + cones.semi_y[b])
                 rho = rb[0] + (rb[1] - rb[0]) * fm
                 centre = cones.start[n, b] + fm * (cones.end[n, b] - cones.start[n, b])
