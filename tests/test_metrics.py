@@ -79,6 +79,8 @@ def test_aggregate_over_runs():
     assert agg["worst"]["run"] == 1 and agg["worst"]["d_mean"] == pytest.approx(120.0)
     assert agg["d_mean_std_over_runs"] == pytest.approx(45.825756949558, rel=1e-12)  # sample SD, n - 1 = 2
     assert agg["mmta"] == pytest.approx(2 / 3)
+    assert agg["d_max"] == pytest.approx(np.mean([r.d_max for r in runs]))  # mean of the runs' maxima
+    assert agg["d_max_over_runs"] == runs[1].d_max == pytest.approx(120.0)  # the largest D of any run
     assert aggregate_runs(runs[:1])["d_mean_std_over_runs"] == 0.0
     with pytest.raises(ValueError, match="no runs"):
         aggregate_runs([])

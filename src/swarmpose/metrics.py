@@ -113,13 +113,15 @@ def spread_over_runs(d_means: Sequence[float]) -> float:
 def aggregate_runs(runs: Sequence[TrackErrors]) -> dict[str, object]:
     """Mean over runs of each measure, their spread, and the worst run (highest D_mean).
 
-    The spread ``d_mean_std_over_runs`` is :func:`spread_over_runs` of the runs' D_mean.
+    The spread ``d_mean_std_over_runs`` is :func:`spread_over_runs` of the runs' D_mean; ``d_max`` is the
+    mean of the runs' maxima and ``d_max_over_runs`` the largest D of any run and frame.
     """
     if not runs:
         raise ValueError("no runs to aggregate")
     keys = ("d_mean", "d_max", "d_std", "mmta", "mmtp", "mu", "sigma")
     out: dict[str, object] = {k: float(np.mean([getattr(r, k) for r in runs])) for k in keys}
     out["d_mean_std_over_runs"] = spread_over_runs([r.d_mean for r in runs])
+    out["d_max_over_runs"] = float(max(r.d_max for r in runs))
     worst = max(range(len(runs)), key=lambda i: runs[i].d_mean)
     out["worst"] = {"run": worst, **{k: getattr(runs[worst], k) for k in keys}}
     out["per_joint"] = {n: float(np.mean([r.per_joint[n] for r in runs])) for n in JOINTS15}

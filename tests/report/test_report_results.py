@@ -69,3 +69,27 @@ def test_missing_sequence_and_subject(fake_results, tmp_path: Path):
         res.sequence_path()
     with pytest.raises(DataError, match=r"subject\.json not found"):
         _ = res.model
+
+
+def test_a_summary_of_other_runs_is_recomputed_and_noted(results_builder, tmp_path: Path):
+    """A resume that adds runs rewrites summary.json only at its end: an interrupted one leaves the
+    folder with more finished runs than summary.json aggregates. The report must not show the old mean."""
+    from swarmpose.metrics import aggregate_runs, track_errors
+    from swarmpose.report.summary import write_summary
+
+    res_dir, _ = results_builder(tmp_path / "three", runs=3)
+    summary = json.loads((res_dir / "summary.json").read_text())
+    two = aggregate_runs([track_errors(r.joints, r.gt_joints) for r in load_results(res_dir).runs[:2]])
+    summary.update(runs=2, d_mean_mm=two["d_mean"], per_run=summary["per_run"][:2])  # as after runs 0-1
+    (res_dir / "summary.json").write_text(json.dumps(summary))
+    res = load_results(res_dir)
+    three = aggregate_runs([track_errors(r.joints, r.gt_joints) for r in res.runs])
+    assert three["d_mean"] != pytest.approx(two["d_mean"], abs=1e-3)
+    assert res.summary["d_mean_mm"] == pytest.approx(three["d_mean"], rel=1e-12)
+    assert res.summary["runs"] == 3 and res.summary["worst"]["run"] == three["worst"]["run"]
+    assert "aggregates run(s) 0, 1, the folder has finished run(s) 0, 1, 2" in res.summary["recomputed_because"]
+    assert res.summary["sequence"] == summary["sequence"]  # what does not depend on the runs is kept
+    md = write_summary(res, out=tmp_path / "summary.md").read_text()
+    assert "> Note: summary.json aggregates run(s) 0, 1" in md
+    # the summary of the same runs is taken as stored
+    assert "recomputed_because" not in load_results(results_builder(tmp_path / "two", runs=2)[0]).summary

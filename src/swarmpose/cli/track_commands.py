@@ -147,7 +147,10 @@ def track(
         over.append(f"means over the {runs} runs")
     if summary["frames_scored"] < summary["frames"]:
         over.append(f"over the {summary['frames_scored']} of {summary['frames']} frames with valid ground truth")
-    console.print(f"  D_mean {summary['d_mean_mm']:.1f} mm, D_max {summary['d_max_mm']:.1f} mm "
+    d_max = f"D_max {summary['d_max_mm']:.1f} mm"
+    if runs > 1:
+        d_max += f" (largest {summary['d_max_over_runs_mm']:.1f})"
+    console.print(f"  D_mean {summary['d_mean_mm']:.1f} mm, {d_max} "
                   f"(IK floor {summary['ik_floor_mm']:.1f} mm); MMTA {100 * summary['mmta']:.1f} %; "
                   f"{summary['frames_per_s']:.2f} frames/s" + (f"  ({'; '.join(over)})" if over else ""),
                   highlight=False)

@@ -282,6 +282,7 @@ def _recompute_summary(config: dict[str, Any], runs: list[RunData], ik_floor: fl
         "evals_per_frame": config.get("evals_per_frame"),
         "d_mean_mm": agg["d_mean"],
         "d_max_mm": agg["d_max"],
+        "d_max_over_runs_mm": agg["d_max_over_runs"],
         "ik_floor_mm": ik_floor,
         "mmta": agg["mmta"],
         "mmtp_mm": agg["mmtp"],
@@ -297,6 +298,10 @@ def _recompute_summary(config: dict[str, Any], runs: list[RunData], ik_floor: fl
                     for r, e in zip(runs, errs, strict=True)],
         "recomputed": True,
     }
+
+
+def _run_list(runs: list[int] | None) -> str:
+    return ", ".join(str(k) for k in runs) if runs else "none"
 
 
 def load_results(results_dir: str | os.PathLike[str]) -> Results:
@@ -372,10 +377,26 @@ def load_results(results_dir: str | os.PathLike[str]) -> Results:
                               path=ik_file)
     ik_floor = None if ik_err is None else float(np.nanmean(ik_err.mean(axis=1)))  # as track: valid frames only
     summary_file = root / "summary.json"
-    if summary_file.is_file():
-        summary = read_json_object(summary_file)
+    stored = read_json_object(summary_file) if summary_file.is_file() else None
+    loaded = sorted(r.run for r in runs)
+    if stored is None:
+        stored_runs = None
+    elif isinstance(stored.get("per_run"), list):
+        stored_runs = sorted(int(r["run"]) for r in stored["per_run"] if isinstance(r, dict) and "run" in r)
+    else:  # written before per_run was stored: runs 0..runs-1
+        stored_runs = list(range(int(stored.get("runs", 0))))
+    if stored is not None and stored_runs == loaded:
+        summary = stored
     else:
         summary = _recompute_summary(config, runs, ik_floor if ik_floor is not None else config.get("ik_floor_mm"))
+        if stored is not None:
+            # a resume that adds runs rewrites summary.json only at its end: until then it is an older aggregate
+            summary["recomputed_because"] = (
+                f"summary.json aggregates run(s) {_run_list(stored_runs)}, the folder has finished run(s) "
+                f"{_run_list(loaded)}: the numbers are recomputed from the runs' joints")
+            for key in ("frames_scored", "frame_interval_s", "sequence", "fitness", "motion", "seed", "out_dir"):
+                if key in stored:
+                    summary.setdefault(key, stored[key])
     summary.setdefault("per_joint_mm", {n: float(v) for n, v in
                                         zip(JOINTS15, np.mean([r.per_joint_mm for r in runs], axis=0),
                                             strict=True)})

@@ -163,9 +163,11 @@ def write_summary(
     if cfg.get("sequence"):
         head += f" of `{cfg['sequence']}`"
     L += [head + ".", ""]
-    for n in list(notes) + [f"run not included: {x}" for x in res.skipped]:
+    stale = [str(s["recomputed_because"])] if s.get("recomputed_because") else []
+    remarks = list(notes) + stale + [f"run not included: {x}" for x in res.skipped]
+    for n in remarks:
         L.append(f"> Note: {n}")
-    if notes or res.skipped:
+    if remarks:
         L.append("")
 
     # ---------------------------------------------------------------- configuration
@@ -229,7 +231,11 @@ def write_summary(
                       "–", "–"])
     L += _table(["run", "D_mean (mm)", "D_max (mm)", "MMTA (%)", "MMTP (mm)", "frames/s"], trows) + [""]
     if len(rows) > 1:
-        L += [f"Spread of D_mean over the runs (sample standard deviation): {_f(spread)} mm.", ""]
+        largest = s.get("d_max_over_runs_mm")
+        if largest is None:
+            largest = max(r["d_max_mm"] for r in rows)
+        L += [f"Spread of D_mean over the runs (sample standard deviation): {_f(spread)} mm. The largest D of "
+              f"any run: {_f(largest)} mm.", ""]
     for f in figures:
         if Path(f).name.startswith("error_over_time"):
             L += [f"![3D error over time: each run, their mean and the IK floor]({_rel(Path(f), base)})", ""]
