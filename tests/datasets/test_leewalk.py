@@ -93,3 +93,18 @@ def test_short_ground_truth_and_bad_frames(leewalk_root: Path, tmp_path: Path):
         leewalk_sequence(f"leewalk:{leewalk_root}?cams=1")
     with pytest.raises(DataError, match="no such Lee walk folder"):
         open_leewalk(tmp_path / "absent")
+
+
+def test_ground_truth_joints_lost_markers_and_units(leewalk_root: Path, tmp_path: Path):
+    root = tmp_path / "lee"
+    shutil.copytree(leewalk_root, root)
+    gt_file = root / "groundtruth" / "joints15.txt"
+    joints = np.loadtxt(gt_file).reshape(-1, 15, 3)
+    joints[4, 7] = 0.0  # a lost right wrist in frame 5
+    np.savetxt(gt_file, joints.reshape(len(joints), 45))
+    rel = open_leewalk(root)
+    assert np.isnan(rel.gt_joints[4, 7]).all() and np.isfinite(rel.gt_joints[4, :7]).all()
+    assert np.isfinite(np.delete(rel.gt_joints, 4, axis=0)).all()
+    np.savetxt(gt_file, joints.reshape(len(joints), 45) / 1000.0)  # metres
+    with pytest.raises(FormatError, match=r"joints15.txt.*median thigh \(hip to knee\) is 0\.\d+, expected 250-700 mm"):
+        open_leewalk(root)

@@ -306,3 +306,33 @@ def test_mirrored_skeleton_raises():
     mirrored = BvhClip(path=bvh.path, joints=joints, frame_time=bvh.frame_time, motion=bvh.motion)
     with pytest.raises(FormatError, match="mirrored"):
         cmu_skeleton_map(mirrored)
+
+
+def _with_offsets(bvh: BvhClip, change) -> BvhClip:
+    joints = [dataclasses.replace(j, offset=change(k, j.offset),
+                                  end_site=None if j.end_site is None else change(k, j.end_site))
+              for k, j in enumerate(bvh.joints)]
+    return BvhClip(path=bvh.path, joints=joints, frame_time=bvh.frame_time, motion=bvh.motion)
+
+
+def test_swapped_arms_raise():
+    """Arms in the other order under the thorax (the right arm first) would map the left arm's joints to
+    the right ones: refused, judged from where the first arm stands."""
+    bvh = read_bvh(_dir() / "cmu_16_35_jog.bvh")
+    shoulders = {bvh.joint_index("LeftShoulder"), bvh.joint_index("RightShoulder")}
+    arm = {j for j in range(len(bvh.joints)) if j in shoulders or any(_is_below(bvh, j, s) for s in shoulders)}
+    flip = np.array([-1.0, 1.0, 1.0])
+    swapped = _with_offsets(bvh, lambda k, v: v * flip if k in arm else v)
+    with pytest.raises(FormatError, match="first arm is on the body's right.*neck, left arm, right arm"):
+        cmu_skeleton_map(swapped)
+
+
+def test_rest_pose_not_facing_plus_z_raises():
+    """The subject's limb offsets are read in CMU's rest frame (facing +Z): another facing is refused."""
+    bvh = read_bvh(_dir() / "cmu_16_35_jog.bvh")
+    turn = Rotation.from_euler("y", 90, degrees=True).as_matrix()
+    turned = _with_offsets(bvh, lambda k, v: turn @ v)
+    with pytest.raises(FormatError, match=r"rest pose faces \+90 degrees from \+Z"):
+        cmu_skeleton_map(turned)
+    slight = Rotation.from_euler("y", 5, degrees=True).as_matrix()
+    cmu_skeleton_map(_with_offsets(bvh, lambda k, v: slight @ v))  # a rest pose a little turned is fine

@@ -46,6 +46,7 @@ from swarmpose.camera import Camera
 from swarmpose.datasets.humaneva import VideoSource, _number, _read_text, parse_calibration
 from swarmpose.errors import ConfigError, DataError, FormatError, ShapeError
 from swarmpose.io.sequence import MultiViewSequence
+from swarmpose.joints import JOINT_INDEX
 
 __all__ = ["LeeWalkLayout", "LeeWalkRelease", "open_leewalk", "leewalk_sequence", "read_number_table",
            "LEEWALK_FRAMES", "LEEWALK_SIZE", "LEEWALK_RATE", "N_PARAMS"]
@@ -158,6 +159,23 @@ class _LeeWalkFrames:
                 s.close()
 
 
+def _checked_joints(gt: np.ndarray, path: Path) -> np.ndarray:
+    """Ground-truth joints as the tracker scores them: a joint at exactly (0, 0, 0), how motion capture
+    writes a lost marker, becomes NaN, so its frame is not scored; and the thighs must be a person's in mm
+    (a file in metres or centimetres would be scored silently wrong)."""
+    gt = np.array(gt, dtype=np.float64)
+    gt[(gt == 0.0).all(axis=-1)] = np.nan
+    l_hip, l_knee, r_hip, r_knee = (JOINT_INDEX[n] for n in ("l_hip", "l_knee", "r_hip", "r_knee"))
+    thigh = np.linalg.norm(gt[:, [l_knee, r_knee]] - gt[:, [l_hip, r_hip]], axis=-1)
+    if np.isfinite(thigh).any():
+        median = float(np.nanmedian(thigh))
+        if not 250.0 <= median <= 700.0:
+            raise FormatError(f"the median thigh (hip to knee) is {median:.4g}, expected 250-700 mm: the joints must "
+                              "be in millimetres, 15 x (x, y, z) per line in HumanEva's order (docs/datasets.md)",
+                              path=path)
+    return gt
+
+
 class LeeWalkRelease:
     """The Lee walk files found under ``root`` with ``layout``.
 
@@ -218,8 +236,8 @@ class LeeWalkRelease:
         self.gt_joints = None
         if self.files["gt_joints"] is not None:
             names = [f"{j}.{a}" for j in range(15) for a in "xyz"]
-            self.gt_joints = read_number_table(self.files["gt_joints"], 45, "ground-truth joint file",
-                                               names).reshape(-1, 15, 3)
+            self.gt_joints = _checked_joints(read_number_table(self.files["gt_joints"], 45, "ground-truth joint file",
+                                                               names).reshape(-1, 15, 3), self.files["gt_joints"])
         self._calib = {cam: parse_calibration(p) for cam, p in self.files["calibration"].items()}
         self._counts: dict[str, int] = {}
         self._size: tuple[int, int] | None = None

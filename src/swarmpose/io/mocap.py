@@ -270,7 +270,8 @@ def cmu_skeleton_map(bvh: BvhClip) -> SkeletonMap:
 
 
 def _check_left_right(bvh: BvhClip, smap: SkeletonMap, fail: Callable[[str], FormatError]) -> None:
-    """Rest pose (BVH, Y up): the first leg must be on the body's left, judged from the feet."""
+    """Rest pose (BVH, Y up), judged from the feet: it must face +Z, as CMU's does (the subject's limb
+    offsets are read in that frame), and the first leg and the first arm must be on the body's left."""
     rest, rest_end = bvh.rest_positions()
     forward = np.zeros(3)
     for toe, ankle in ((smap.l_toe, smap.joint("l_ankle")), (smap.r_toe, smap.joint("r_ankle"))):
@@ -278,10 +279,19 @@ def _check_left_right(bvh: BvhClip, smap: SkeletonMap, fail: Callable[[str], For
     forward[1] = 0.0  # horizontal part (BVH Y is up)
     if np.linalg.norm(forward) < 1e-9:
         return  # feet point straight down: no facing direction to judge by
+    forward /= np.linalg.norm(forward)
+    if forward[2] < np.cos(np.radians(10.0)):  # CMU files: within 0.5 degrees
+        heading = np.degrees(np.arctan2(forward[0], forward[2]))
+        raise fail(f"the rest pose faces {heading:+.0f} degrees from +Z (judged from the feet); a CMU-style "
+                   "skeleton must stand Y up facing +Z")
     left = np.cross([0.0, 1.0, 0.0], forward)  # left = up x forward (right-handed)
     side = float(np.dot(rest[smap.joint("l_hip")] - rest[smap.joint("r_hip")], left))
     if side <= 0:
         raise fail("the root's first leg is on the body's right in the rest pose (mirrored skeleton?)")
+    side = float(np.dot(rest[smap.joint("l_shoulder")] - rest[smap.joint("r_shoulder")], left))
+    if side <= 0:
+        raise fail("the thorax's first arm is on the body's right in the rest pose: expected its children in "
+                   "the order neck, left arm, right arm, as in CMU files (mirrored or reordered skeleton?)")
 
 
 def swarmpose_skeleton_map(bvh: BvhClip) -> SkeletonMap:
