@@ -37,7 +37,7 @@ def side_params(side, extra=False):
     ]
     if extra:
         legs += [
-            P(f"{side}_ankle_flex", f"{word}_leg", -50, 30, 5.0, f"{word} ankle plantar(+)/dorsiflexion"),
+            P(f"{side}_ankle_flex", f"{word}_leg", -50, 30, 5.0, f"{word} ankle dorsiflexion(+)/plantarflexion"),
             P(f"{side}_ankle_inv", f"{word}_leg", -30, 30, 5.0, f"{word} ankle inversion(+)/eversion"),
         ]
     arms = [
@@ -154,7 +154,8 @@ THESIS_VARIANT = {  # thesis sec. 5.1.2, the four modifications of Balan's cones
     "l_calf": {"length": 1.2}, "r_calf": {"length": 1.2},
     "l_lower_arm": {"length": 1.2}, "r_lower_arm": {"length": 1.2},
     "head": {"length": 0.6, "start_shift": 0.3},
-    "torso": {"length": 1.05},
+    # not the thesis's torso x1.05: the torso axis already reaches the top of the shoulders (commit 107e751;
+    # docs/body-models.md)
     "l_thigh": {"thickness": 1.2}, "r_thigh": {"thickness": 1.2},
 }
 COLLISIONS = [["torso", "l_lower_arm"], ["torso", "r_lower_arm"], ["l_thigh", "r_thigh"], ["l_calf", "r_calf"],
@@ -244,14 +245,21 @@ def full45():
     }
 
 
-def write(spec, keep_sigma=True):
-    path = OUT / f"{spec['name']}.json"
-    if keep_sigma and path.exists():  # keep sigmas derived by scripts/derive_priors.py
+def with_derived_sigmas(spec, path):
+    """``spec`` with the sigmas that scripts/derive_priors.py wrote into the existing file at ``path``."""
+    if path.exists():
         old = {p["name"]: p for p in json.loads(path.read_text())["parameters"]}
         for p in spec["parameters"]:
             if p["name"] in old and "sigma_source" in old[p["name"]]:
                 p["sigma"] = old[p["name"]]["sigma"]
                 p["sigma_source"] = old[p["name"]]["sigma_source"]
+    return spec
+
+
+def write(spec, keep_sigma=True):
+    path = OUT / f"{spec['name']}.json"
+    if keep_sigma:
+        spec = with_derived_sigmas(spec, path)
     path.write_text(json.dumps(spec, indent=1) + "\n")
     print(f"wrote {path} ({len(spec['parameters'])} parameters)")
 
