@@ -323,7 +323,7 @@ def test_swapped_arms_raise():
     arm = {j for j in range(len(bvh.joints)) if j in shoulders or any(_is_below(bvh, j, s) for s in shoulders)}
     flip = np.array([-1.0, 1.0, 1.0])
     swapped = _with_offsets(bvh, lambda k, v: v * flip if k in arm else v)
-    with pytest.raises(FormatError, match="first arm is on the body's right.*neck, left arm, right arm"):
+    with pytest.raises(FormatError, match="first arm is on the other side from the root's first leg.*neck, left arm"):
         cmu_skeleton_map(swapped)
 
 

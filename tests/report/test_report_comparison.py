@@ -103,3 +103,16 @@ def test_one_colour_per_entry_whatever_the_rate():
     assert keys == {"aapso reprojection"}
     assert _entry_key({"label": "sppso 20fps"}) == _entry_key({"label": "sppso 60fps"}) == "sppso"
     assert _entry_key({"label": "sppso stage 2 10x80 20fps"}) == "sppso stage 2 10x80"
+
+
+def test_an_entry_with_more_runs_than_its_table_is_noted(comparison: Path):
+    """A resume that adds runs, interrupted: the entry has a finished run the table does not count."""
+    cell = comparison / "walk" / "apf_20fps"
+    shutil.copytree(cell / "run_001", cell / "run_002")
+    config = json.loads((cell / "config.json").read_text())
+    (cell / "config.json").write_text(json.dumps({**config, "runs": 3}))
+    paths = write_comparison(comparison)
+    (note,) = paths["notes"]
+    assert note.startswith("walk / apf 20fps: 3 runs finished, the comparison's table has 2")
+    assert f"> Note: {note}" in (comparison / "comparison.md").read_text()
+    assert len(load_results(cell).runs) == 3

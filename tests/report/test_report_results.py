@@ -87,7 +87,7 @@ def test_a_summary_of_other_runs_is_recomputed_and_noted(results_builder, tmp_pa
     assert three["d_mean"] != pytest.approx(two["d_mean"], abs=1e-3)
     assert res.summary["d_mean_mm"] == pytest.approx(three["d_mean"], rel=1e-12)
     assert res.summary["runs"] == 3 and res.summary["worst"]["run"] == three["worst"]["run"]
-    assert "aggregates run(s) 0, 1, the folder has finished run(s) 0, 1, 2" in res.summary["recomputed_because"]
+    assert "aggregates run(s) 0, 1; the folder has finished run(s) 0, 1, 2" in res.summary["recomputed_because"]
     assert res.summary["sequence"] == summary["sequence"]  # what does not depend on the runs is kept
     md = write_summary(res, out=tmp_path / "summary.md").read_text()
     assert "> Note: summary.json aggregates run(s) 0, 1" in md

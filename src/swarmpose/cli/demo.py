@@ -55,8 +55,12 @@ def demo(
         return
     console.print(f"[bold]{algo}[/bold] on {escape(Path(clip).name)} at {fps:g} fps, {runs} runs, "
                   f"{summary['evals_per_frame']} evaluations per frame")
-    console.print(f"  D_mean {summary['d_mean_mm']:.1f} mm, D_max {summary['d_max_mm']:.1f} mm "
-                  f"(mean of the runs' maxima; largest {summary['d_max_over_runs_mm']:.1f}), "
+    d_max = f"D_max {summary['d_max_mm']:.1f} mm"
+    maxima = [r["d_max_mm"] for r in summary.get("per_run", []) if "d_max_mm" in r]
+    largest = summary.get("d_max_over_runs_mm", max(maxima) if maxima else None)  # older folders lack it
+    if len(maxima) > 1 and largest is not None:
+        d_max += f" (mean of the runs' maxima; largest {largest:.1f})"
+    console.print(f"  D_mean {summary['d_mean_mm']:.1f} mm, {d_max}, "
                   f"IK floor {summary['ik_floor_mm']:.1f} mm, MMTA {100 * summary['mmta']:.1f} %, "
                   f"{summary['frames_per_s']:.2f} frames/s per run")
     console.print(f"  report: {paths.summary}", markup=False, highlight=False)

@@ -271,8 +271,14 @@ def cmu_skeleton_map(bvh: BvhClip) -> SkeletonMap:
 
 def _check_left_right(bvh: BvhClip, smap: SkeletonMap, fail: Callable[[str], FormatError]) -> None:
     """Rest pose (BVH, Y up), judged from the feet: it must face +Z, as CMU's does (the subject's limb
-    offsets are read in that frame), and the first leg and the first arm must be on the body's left."""
+    offsets are read in that frame), and the first leg must be on the body's left; the first arm must be
+    on the first leg's side."""
     rest, rest_end = bvh.rest_positions()
+    hips = rest[smap.joint("l_hip")] - rest[smap.joint("r_hip")]
+    if float(np.dot(rest[smap.joint("l_shoulder")] - rest[smap.joint("r_shoulder")], hips)) <= 0:
+        raise fail("the thorax's first arm is on the other side from the root's first leg in the rest pose: "
+                   "expected the thorax's children in the order neck, left arm, right arm, as in CMU files "
+                   "(reordered skeleton?)")
     forward = np.zeros(3)
     for toe, ankle in ((smap.l_toe, smap.joint("l_ankle")), (smap.r_toe, smap.joint("r_ankle"))):
         forward += rest_end[toe] - rest[ankle]
@@ -285,13 +291,8 @@ def _check_left_right(bvh: BvhClip, smap: SkeletonMap, fail: Callable[[str], For
         raise fail(f"the rest pose faces {heading:+.0f} degrees from +Z (judged from the feet); a CMU-style "
                    "skeleton must stand Y up facing +Z")
     left = np.cross([0.0, 1.0, 0.0], forward)  # left = up x forward (right-handed)
-    side = float(np.dot(rest[smap.joint("l_hip")] - rest[smap.joint("r_hip")], left))
-    if side <= 0:
+    if float(np.dot(hips, left)) <= 0:
         raise fail("the root's first leg is on the body's right in the rest pose (mirrored skeleton?)")
-    side = float(np.dot(rest[smap.joint("l_shoulder")] - rest[smap.joint("r_shoulder")], left))
-    if side <= 0:
-        raise fail("the thorax's first arm is on the body's right in the rest pose: expected its children in "
-                   "the order neck, left arm, right arm, as in CMU files (mirrored or reordered skeleton?)")
 
 
 def swarmpose_skeleton_map(bvh: BvhClip) -> SkeletonMap:

@@ -122,7 +122,7 @@ def comparison_figures(folder: str | os.PathLike[str], report: dict[str, Any] | 
         Its ``comparison.json``; read from ``folder`` when not given.
     dpi : float, default 110
     notes : list, optional
-        Receives a line for each entry with fewer finished runs than the comparison recorded.
+        Receives a line for each entry with fewer or more finished runs than the comparison recorded.
 
     Returns
     -------

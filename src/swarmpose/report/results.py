@@ -300,6 +300,17 @@ def _recompute_summary(config: dict[str, Any], runs: list[RunData], ik_floor: fl
     }
 
 
+def _summarised_runs(summary: dict[str, Any], path: Path) -> list[int]:
+    """The run numbers a folder's ``summary.json`` aggregates (its ``per_run`` entries)."""
+    per_run = summary.get("per_run")
+    try:
+        if isinstance(per_run, list) and per_run and all(isinstance(r, dict) and "run" in r for r in per_run):
+            return sorted(int(r["run"]) for r in per_run)
+        return list(range(len(per_run) if isinstance(per_run, list) else int(summary.get("runs", 0))))
+    except (TypeError, ValueError):
+        raise FormatError("per_run[].run and runs must be run numbers", path=path) from None
+
+
 def _run_list(runs: list[int] | None) -> str:
     return ", ".join(str(k) for k in runs) if runs else "none"
 
@@ -379,12 +390,7 @@ def load_results(results_dir: str | os.PathLike[str]) -> Results:
     summary_file = root / "summary.json"
     stored = read_json_object(summary_file) if summary_file.is_file() else None
     loaded = sorted(r.run for r in runs)
-    if stored is None:
-        stored_runs = None
-    elif isinstance(stored.get("per_run"), list):
-        stored_runs = sorted(int(r["run"]) for r in stored["per_run"] if isinstance(r, dict) and "run" in r)
-    else:  # written before per_run was stored: runs 0..runs-1
-        stored_runs = list(range(int(stored.get("runs", 0))))
+    stored_runs = None if stored is None else _summarised_runs(stored, summary_file)
     if stored is not None and stored_runs == loaded:
         summary = stored
     else:
@@ -392,8 +398,9 @@ def load_results(results_dir: str | os.PathLike[str]) -> Results:
         if stored is not None:
             # a resume that adds runs rewrites summary.json only at its end: until then it is an older aggregate
             summary["recomputed_because"] = (
-                f"summary.json aggregates run(s) {_run_list(stored_runs)}, the folder has finished run(s) "
-                f"{_run_list(loaded)}: the numbers are recomputed from the runs' joints")
+                f"summary.json aggregates run(s) {_run_list(stored_runs)}; the folder has finished run(s) "
+                f"{_run_list(loaded)} (an interrupted --resume? finishing it rewrites summary.json): the numbers "
+                "here are recomputed from the runs' joints")
             for key in ("frames_scored", "frame_interval_s", "sequence", "fitness", "motion", "seed", "out_dir"):
                 if key in stored:
                     summary.setdefault(key, stored[key])
