@@ -141,3 +141,20 @@ def test_collision_volume_follows_a_tilted_torso_axis(tilted_model):
     assert np.array_equal(priors.collisions(poses), expected)
     forearm_hits = expected[:, :2]
     assert forearm_hits.any() and not forearm_hits.all()
+
+
+def test_a_collision_cone_lying_in_its_frames_xy_plane_is_refused(tmp_path):
+    """Its cross-sections lie in that plane too, so they would not span a volume to test against."""
+    import json
+    from importlib import resources
+
+    from swarmpose.body.model import BodyModel
+    from swarmpose.body.spec import load_spec
+
+    spec = json.loads((resources.files("swarmpose.models") / "balan31.json").read_text())
+    spec["default_subject"]["offsets"]["pelvis_to_torso_top"] = [0.0, 300.0, 0.0]  # sideways, flat
+    path = tmp_path / "flat.json"
+    path.write_text(json.dumps(spec))
+    flat = BodyModel(load_spec(path), None, "thesis")
+    with pytest.raises(ConfigError, match="collision cone 'torso' lies in its joint frame's x-y plane"):
+        HardPriors(flat)
