@@ -31,6 +31,7 @@ def demo(
     into OUT/report/.
     """
     from swarmpose.report import make_report
+    from swarmpose.report.results import largest_run_maximum
     from swarmpose.track.runner import check_results_folder, resolve_sequence, track_runs
     from swarmpose.track.tracker import TrackConfig
 
@@ -56,9 +57,8 @@ def demo(
     console.print(f"[bold]{algo}[/bold] on {escape(Path(clip).name)} at {fps:g} fps, {runs} runs, "
                   f"{summary['evals_per_frame']} evaluations per frame")
     d_max = f"D_max {summary['d_max_mm']:.1f} mm"
-    maxima = [r["d_max_mm"] for r in summary.get("per_run", []) if "d_max_mm" in r]
-    largest = summary.get("d_max_over_runs_mm", max(maxima) if maxima else None)  # older folders lack it
-    if len(maxima) > 1 and largest is not None:
+    largest = largest_run_maximum(summary)  # also for a reused folder written before the key existed
+    if summary.get("runs", runs) > 1 and largest is not None:
         d_max += f" (mean of the runs' maxima; largest {largest:.1f})"
     console.print(f"  D_mean {summary['d_mean_mm']:.1f} mm, {d_max}, "
                   f"IK floor {summary['ik_floor_mm']:.1f} mm, MMTA {100 * summary['mmta']:.1f} %, "

@@ -236,8 +236,8 @@ class LeeWalkRelease:
         self.gt_joints = None
         if self.files["gt_joints"] is not None:
             names = [f"{j}.{a}" for j in range(15) for a in "xyz"]
-            self.gt_joints = _checked_joints(read_number_table(self.files["gt_joints"], 45, "ground-truth joint file",
-                                                               names).reshape(-1, 15, 3), self.files["gt_joints"])
+            table = read_number_table(self.files["gt_joints"], 45, "ground-truth joint file", names)
+            self.gt_joints = _checked_joints(table.reshape(-1, 15, 3), self.files["gt_joints"])
         self._calib = {cam: parse_calibration(p) for cam, p in self.files["calibration"].items()}
         self._counts: dict[str, int] = {}
         self._size: tuple[int, int] | None = None

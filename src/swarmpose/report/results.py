@@ -33,7 +33,7 @@ from swarmpose.io.files import load_npz, read_json_object
 from swarmpose.joints import JOINTS15
 from swarmpose.metrics import valid_frames
 
-__all__ = ["RunData", "Results", "load_results", "as_results"]
+__all__ = ["RunData", "Results", "load_results", "as_results", "largest_run_maximum"]
 
 
 @dataclass
@@ -298,6 +298,15 @@ def _recompute_summary(config: dict[str, Any], runs: list[RunData], ik_floor: fl
                     for r, e in zip(runs, errs, strict=True)],
         "recomputed": True,
     }
+
+
+def largest_run_maximum(summary: dict[str, Any]) -> float | None:
+    """The largest D of any run: ``d_max_over_runs_mm``, or for a summary written before that key existed
+    the largest of its ``per_run`` D_max; None when it has neither."""
+    if summary.get("d_max_over_runs_mm") is not None:
+        return float(summary["d_max_over_runs_mm"])
+    maxima = [r["d_max_mm"] for r in summary.get("per_run", []) if isinstance(r, dict) and "d_max_mm" in r]
+    return float(max(maxima)) if maxima else None
 
 
 def _summarised_runs(summary: dict[str, Any], path: Path) -> list[int]:

@@ -12,7 +12,7 @@ import numpy as np
 
 from swarmpose.joints import JOINTS15
 from swarmpose.metrics import MMTA_DELTA_MM, spread_over_runs, track_errors
-from swarmpose.report.results import Results, as_results
+from swarmpose.report.results import Results, as_results, largest_run_maximum
 
 __all__ = ["write_summary", "run_rows"]
 
@@ -231,7 +231,7 @@ def write_summary(
                       "–", "–"])
     L += _table(["run", "D_mean (mm)", "D_max (mm)", "MMTA (%)", "MMTP (mm)", "frames/s"], trows) + [""]
     if len(rows) > 1:
-        largest = s.get("d_max_over_runs_mm")
+        largest = largest_run_maximum(s)
         if largest is None:
             largest = max(r["d_max_mm"] for r in rows)
         L += [f"Spread of D_mean over the runs (sample standard deviation): {_f(spread)} mm. The largest D of "
