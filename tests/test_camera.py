@@ -319,5 +319,9 @@ def test_load_rig_errors(tmp_path):
         load_rig(path)
     with pytest.raises(DataError):
         load_rig(tmp_path / "nope.json")
+    path.write_bytes(b"\x89PNG\r\n\x1a\n\xff")  # an image saved under the rig's name
+    with pytest.raises(FormatError, match="not a UTF-8 text file") as info:
+        load_rig(path)
+    assert str(path) in str(info.value)
     with pytest.raises(ConfigError):
         save_rig(tmp_path / "dup.json", [make_cam(), make_cam()])

@@ -629,6 +629,8 @@ def load_rig(path: str | os.PathLike[str]) -> list[Camera]:
         text = path.read_text(encoding="utf-8")
     except OSError as exc:
         raise DataError(f"cannot read rig file {path}: {exc}") from exc
+    except UnicodeDecodeError:
+        raise FormatError("not a UTF-8 text file (a camera rig JSON file was expected)", path=path) from None
     try:
         doc = json.loads(text)
     except json.JSONDecodeError as exc:

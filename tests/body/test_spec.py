@@ -113,3 +113,14 @@ def test_bad_subject_files_name_the_file_and_field(tmp_path, text, error, match)
     with pytest.raises(error, match=match) as err:
         Subject.load(path)
     assert "s.json" in str(err.value)
+
+
+def test_binary_subject_and_spec_files_are_named_not_a_traceback(tmp_path):
+    path = tmp_path / "s.json"
+    path.write_bytes(b"\x89PNG\r\n\x1a\n\xff\xfe")
+    with pytest.raises(FormatError, match="not a UTF-8 text file") as err:
+        Subject.load(path)
+    assert "s.json" in str(err.value)
+    with pytest.raises(FormatError, match="not a UTF-8 text file") as err:
+        load_spec(path)
+    assert "s.json" in str(err.value)

@@ -185,6 +185,40 @@ def test_bad_metadata_field_is_named(written, changes, field):
     assert "sequence.json" in str(exc.value) or "frames.npz" in str(exc.value)
 
 
+@pytest.mark.parametrize(("times", "said"), [
+    (np.array([0.0, 1 / 60, np.nan, 3 / 60, 4 / 60]), "finite, frame 2"),
+    (np.array([0.0, 1 / 60, 3 / 60, 2 / 60, 4 / 60]), "increase strictly, frame 3"),
+    (np.arange(T) * 1000.0 / 60.0, "does not match the frame rate 60"),  # milliseconds
+    (np.arange(T) / 25.0, "does not match the frame rate 60"),
+])
+def test_frame_times_that_would_pick_wrong_frames_are_refused(written, times, said):
+    """Times not finite, not increasing or not at the frame rate made subsample() return no frames or the
+    wrong ones; the file is refused, named."""
+    _, path = written
+    np.savez(path / "frames.npz", frame_times=times)
+    with pytest.raises(FormatError, match=said) as exc:
+        open_sequence(path)
+    assert "frames.npz" in str(exc.value) and "frame_times" in str(exc.value)
+    with pytest.raises(ConfigError, match=said):
+        MultiViewSequence(cameras=_cameras(), frame_rate=60.0, n_frames=T, frame_times=times)
+
+
+def test_a_dropped_frame_and_an_offset_start_are_accepted():
+    times = np.r_[0.0, 1, 2, 4, 5, 6] / 60.0 + 12.5  # one frame missing, the clock not at 0
+    seq = MultiViewSequence(cameras=_cameras(), frame_rate=60.0, n_frames=6, frame_times=times)
+    np.testing.assert_array_equal(seq.frame_times, times)
+
+
+def test_two_views_sharing_one_archive_are_refused(written):
+    _, path = written
+    meta = json.loads((path / "sequence.json").read_text())
+    meta["files"]["views"]["V0"] = meta["files"]["views"]["V1"]
+    (path / "sequence.json").write_text(json.dumps(meta))
+    with pytest.raises(FormatError, match=r"same archive.*V1\.zip") as exc:
+        open_sequence(path)
+    assert "sequence.json" in str(exc.value)
+
+
 def test_wrong_array_shape_is_named(written):
     _, path = written
     np.savez_compressed(path / "ground_truth.npz", joints=np.zeros((T, 14, 3)))

@@ -116,3 +116,30 @@ def test_an_entry_with_more_runs_than_its_table_is_noted(comparison: Path):
     assert note.startswith("walk / apf 20fps: 3 runs finished, the comparison's table has 2")
     assert f"> Note: {note}" in (comparison / "comparison.md").read_text()
     assert len(load_results(cell).runs) == 3
+
+
+def test_the_error_over_time_figure_says_how_many_runs_each_entry_has(comparison: Path, monkeypatch):
+    """Its title says "mean of 2 run(s)" only while every entry has them; an entry with another count says
+    its own in the legend."""
+    from matplotlib.figure import Figure
+
+    seen: dict[str, tuple[str, list[str]]] = {}
+    save = Figure.savefig
+
+    def record(fig, path, *args, **kwargs):
+        legends = [t.get_text() for ax in fig.axes if ax.get_legend() for t in ax.get_legend().get_texts()]
+        seen[Path(path).name] = (fig._suptitle.get_text() if fig._suptitle else "", legends)
+        return save(fig, path, *args, **kwargs)
+
+    monkeypatch.setattr(Figure, "savefig", record)
+    write_comparison(comparison)
+    title, legend = seen["comparison_over_time.png"]
+    assert "mean of 2 run(s) per entry" in title and not any("run(s)" in t for t in legend)
+
+    (comparison / "walk" / "apf_20fps" / "run_001" / "joints.npz").unlink()
+    write_comparison(comparison)
+    title, legend = seen["comparison_over_time.png"]
+    assert "mean of 2 run(s)" not in title and "finished runs" in title
+    (apf,) = [t for t in legend if t.startswith("apf 20fps")]
+    (sppso,) = [t for t in legend if t.startswith("sppso 20fps")]
+    assert apf.endswith(", 1 run(s)") and "run(s)" not in sppso

@@ -142,9 +142,13 @@ class Subject:
     def load(cls, path: str | Path) -> Subject:
         path = Path(path)
         try:
-            data = json.loads(path.read_text())
+            data = json.loads(path.read_text(encoding="utf-8"))
         except FileNotFoundError:
             raise DataError(f"{path}: subject file not found") from None
+        except OSError as exc:
+            raise DataError(f"{path}: cannot read the subject file: {exc}") from exc
+        except UnicodeDecodeError:
+            raise FormatError("not a UTF-8 text file (a subject JSON file was expected)", path=path) from None
         except json.JSONDecodeError as exc:
             raise FormatError(f"not valid JSON ({exc.msg})", path=path, line=exc.lineno) from None
         return cls.from_dict(data, path=path)
@@ -335,13 +339,18 @@ def load_spec(name_or_path: str | Path) -> BodySpec:
     path: object
     if isinstance(name_or_path, str) and name_or_path in builtin_specs():
         res = resources.files("swarmpose.models") / f"{name_or_path}.json"
-        text, path = res.read_text(), f"swarmpose/models/{name_or_path}.json"
+        text, path = res.read_text(encoding="utf-8"), f"swarmpose/models/{name_or_path}.json"
     else:
         p = Path(name_or_path)
         if not p.is_file():
             raise ConfigError(f"unknown body model {str(name_or_path)!r}: not a shipped model "
                               f"({', '.join(builtin_specs())}) and not a file")
-        text, path = p.read_text(), p
+        try:
+            text, path = p.read_text(encoding="utf-8"), p
+        except OSError as exc:
+            raise DataError(f"{p}: cannot read the body model spec: {exc}") from exc
+        except UnicodeDecodeError:
+            raise FormatError("not a UTF-8 text file (a body model spec JSON file was expected)", path=p) from None
     try:
         data = json.loads(text)
     except json.JSONDecodeError as exc:

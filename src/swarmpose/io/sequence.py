@@ -362,6 +362,9 @@ class MultiViewSequence:
         self.frame_times = _ro(np.asarray(frame_times, dtype=np.float64))
         if self.frame_times.shape != (T,):
             raise ShapeError(f"frame_times must have shape {(T,)}, got {self.frame_times.shape}")
+        problem = frame_times_problem(self.frame_times, fr)
+        if problem:
+            raise ConfigError(problem)
         if backgrounds is not None:
             backgrounds = np.asarray(backgrounds)
             if backgrounds.shape != (C, H, W) or backgrounds.dtype != np.uint8:
@@ -506,6 +509,29 @@ class MultiViewSequence:
         return (f"MultiViewSequence({self.n_frames} frames at {self.frame_rate:g} fps, views {self.view_names}, "
                 f"{W}x{H}, streams {list(self.streams)}, markers={self.marker_data is not None}, "
                 f"gt={self.gt_joints is not None}, path={str(self.path) if self.path else None})")
+
+
+def frame_times_problem(times: np.ndarray, frame_rate: float) -> str | None:
+    """What is wrong with a sequence's frame times (seconds) for ``frame_rate``, or ``None``.
+
+    They must be finite and strictly increasing, and their median step within 1 % of ``1 / frame_rate``
+    (single dropped frames are allowed; times in milliseconds or at another rate are not).
+    """
+    t = np.asarray(times, dtype=np.float64)
+    if not np.isfinite(t).all():
+        k = int(np.flatnonzero(~np.isfinite(t))[0])
+        return f"frame_times must be finite, frame {k} is {t[k]!r}"
+    if t.size < 2:
+        return None
+    steps = np.diff(t)
+    if (steps <= 0).any():
+        k = int(np.flatnonzero(steps <= 0)[0]) + 1
+        return f"frame_times must increase strictly, frame {k} is at {t[k]:g} s after {t[k - 1]:g} s"
+    step = float(np.median(steps))
+    if abs(step * frame_rate - 1.0) > 0.01:
+        return (f"frame_times step {step:g} s (median) does not match the frame rate {frame_rate:g} fps "
+                f"(expected {1.0 / frame_rate:g} s; times are in seconds)")
+    return None
 
 
 def _ro(a: np.ndarray) -> np.ndarray:
@@ -828,6 +854,8 @@ def open_sequence(path: str | os.PathLike[str]) -> MultiViewSequence:
     if T < 0:
         raise FormatError(f"n_frames must be >= 0, got {T}", path=meta_path, field="n_frames")
     fr = float(_field(meta, "frame_rate", meta_path, (int, float)))
+    if not (math.isfinite(fr) and fr > 0):
+        raise FormatError(f"frame_rate must be finite and > 0, got {fr!r}", path=meta_path, field="frame_rate")
     size = _field(meta, "image_size", meta_path, (list,))
     if len(size) != 2 or not all(isinstance(x, int) and not isinstance(x, bool) and x > 0 for x in size):
         raise FormatError(f"image_size must be [width, height] positive integers, got {size!r}",
@@ -846,6 +874,10 @@ def open_sequence(path: str | os.PathLike[str]) -> MultiViewSequence:
     if not isinstance(view_files, dict) or sorted(view_files) != sorted(views):
         raise FormatError(f"'files.views' must map every view {views} to its archive", path=meta_path,
                           field="files.views")
+    shared = sorted({str(f) for f in view_files.values() if list(map(str, view_files.values())).count(str(f)) > 1})
+    if shared:
+        raise FormatError(f"'files.views' gives two views the same archive {shared} (each view has its own images)",
+                          path=meta_path, field="files.views")
 
     cam_path = root / files["cameras"]
     if not cam_path.is_file():
@@ -862,6 +894,9 @@ def open_sequence(path: str | os.PathLike[str]) -> MultiViewSequence:
     fpath = root / files["frames"]
     frame_times = _check_shape(_load_npz(fpath, ["frame_times"])["frame_times"], (T,), np.float64, fpath,
                                "frame_times")
+    problem = frame_times_problem(frame_times, fr)
+    if problem:
+        raise FormatError(problem, path=fpath, field="frame_times")
     backgrounds = None
     if files.get("backgrounds"):
         bpath = root / files["backgrounds"]

@@ -162,9 +162,10 @@ def comparison_figures(folder: str | os.PathLike[str], report: dict[str, Any] | 
                 D = np.stack([run.d_per_frame for run in res.runs])
                 mean = np.nanmean(D, axis=0) if np.isfinite(D).any(axis=0).all() else D.mean(axis=0)
                 top = max(top, float(np.nanmax(mean)) if np.isfinite(mean).any() else 0.0)
+                n_runs = "" if len(res.runs) == report["runs"] else f", {len(res.runs)} run(s)"
                 ax.plot(res.frame_times, mean, lw=1.8, color=colour[_entry_key(r)],
                         marker="." if len(mean) < 30 else None,
-                        label=f"{r['label']}: {per_run[id(r)].mean():.1f} mm")
+                        label=f"{r['label']}: {per_run[id(r)].mean():.1f} mm{n_runs}")
             with_ik = next((loaded[id(r)] for r in mine if loaded[id(r)].ik_frame_error_mm is not None), None)
             if with_ik is not None:
                 ik = with_ik.ik_frame_error_mm
@@ -182,7 +183,11 @@ def comparison_figures(folder: str | os.PathLike[str], report: dict[str, Any] | 
             if mine:
                 ax.legend(loc="upper left", fontsize=7.5, framealpha=0.9)
         axes[i][0].set_ylim(0.0, top * 1.15)  # shared along the row: the rates are compared on one scale
-    fig.suptitle(f"{suite}: 3D error over time, mean of {report['runs']} run(s) per entry{quick}", fontsize=11)
+    counts = {len(res.runs) for res in loaded.values()}
+    runs_said = (f"mean of {report['runs']} run(s) per entry" if counts == {report["runs"]}
+                 else "mean of each entry's finished runs (the legend gives the counts that differ "
+                      f"from {report['runs']})")
+    fig.suptitle(f"{suite}: 3D error over time, {runs_said}{quick}", fontsize=11)
     fig.tight_layout()
     over_time = folder / "comparison_over_time.png"
     fig.savefig(over_time, dpi=dpi, format="png")
