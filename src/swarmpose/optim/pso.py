@@ -18,10 +18,14 @@ Deviations, stated plainly:
   sees particle ``i``'s improvement within one iteration. A batched fitness evaluates the whole swarm at
   once, so ``p_g`` is updated once per iteration (the usual synchronous PSO).
 * **After the last re-draw.** The thesis does not say what happens when all 10 re-draws violate the
-  constraints. We keep the last move (Algorithm 2 read literally), clip it into the bounds, and mark the
-  particle *invalid* for this iteration: its score is not allowed to become a personal or global best, so
-  the estimate always satisfies the constraints whenever any evaluated particle did. When none did, the
-  stage reports its start centre ``x_hat`` (score ``-inf``) rather than an invalid particle.
+  constraints. We keep the last move (Algorithm 2 read literally) and, when it left the joint-limit box,
+  clip it into the box and test it again (``clip_invalid``): a clipped pose that passes every constraint
+  is valid and may become a best, so estimates sit exactly on a joint limit on some frames (8 % of the
+  frames of 100 walk runs at 20 fps; scoring the clipped poses as invalid instead changed D by 1.9 mm on
+  36 searches, within their spread). A particle still invalid is scored and counted but not allowed to
+  become a personal or global best, so the estimate always satisfies the constraints whenever any
+  evaluated particle did. When none did, the stage reports its start centre ``x_hat`` (score ``-inf``)
+  rather than an invalid particle.
 * **Start positions** that violate the constraints are re-drawn from eq. 5.10 in the same way (Algorithm 2
   does not mention it; it keeps the initial swarm inside the hard priors).
 """
