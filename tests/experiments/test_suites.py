@@ -85,7 +85,22 @@ def test_marker_suites_differ_only_in_the_fitness():
     paper = [e for e in suite("markers") if e.fitness == "markers"]
     repro = suite("markers-reprojection")
     assert len(paper) == len(repro) == 6 and all(e.fitness == "reprojection" for e in repro)
-    assert [dataclasses.replace(e, fitness="reprojection") for e in paper] == repro
+    assert ([dataclasses.replace(e, fitness="reprojection", reference="") for e in paper]
+            == [dataclasses.replace(e, reference="") for e in repro])
+
+
+def test_every_entry_cites_the_table_or_figure_of_its_own_set_up():
+    """Sharifi et al.: Table 1 base configuration (25 fps), 3 (12 fps), 4 global, 5 hard, 7 non-adaptive,
+    8 APF; a fitness other than the paper's epipolar score is said. Thesis 6.5: Fig. 6.9 at 20 fps, 6.8 at 60."""
+    tables = {"aapso 25fps": 1, "aapso 12fps": 3, "aapso global 400x10 25fps": 4, "aapso hard partitions 25fps": 5,
+              "aapso-fixed (non-adaptive) 25fps": 7, "apf-dr05 700x5 25fps": 8}
+    for name in ("markers", "markers-reprojection"):
+        for e in suite(name):
+            table = tables[e.label.removesuffix(" reprojection")]
+            assert f"Table {table} set-up" in e.reference and e.reference.count("Table") == 1
+            assert ("not the paper's" in e.reference) == (e.fitness != "markers")
+    for e in suite("thesis-apf"):
+        assert ("Fig. 6.9" if e.fps == 20.0 else "Fig. 6.8") in e.reference and e.reference.count("Fig.") == 1
 
 
 def test_fitness_option_parsing():
