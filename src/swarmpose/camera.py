@@ -33,6 +33,7 @@ from typing import Any, Literal
 import numpy as np
 
 from swarmpose.errors import ConfigError, DataError, FormatError, ShapeError
+from swarmpose.io.files import read_json_object
 
 __all__ = ["Camera", "fundamental_matrix", "save_rig", "load_rig", "RIG_FORMAT", "RIG_VERSION"]
 
@@ -626,17 +627,9 @@ def load_rig(path: str | os.PathLike[str]) -> list[Camera]:
     """
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        doc = read_json_object(path)  # not UTF-8, not JSON or not an object: a FormatError naming the file
     except OSError as exc:
         raise DataError(f"cannot read rig file {path}: {exc}") from exc
-    except UnicodeDecodeError:
-        raise FormatError("not a UTF-8 text file (a camera rig JSON file was expected)", path=path) from None
-    try:
-        doc = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise FormatError(f"invalid JSON: {exc.msg}", path=path, line=exc.lineno) from None
-    if not isinstance(doc, dict):
-        raise FormatError("expected a JSON object at the top level", path=path)
     for fld in ("format", "version", "cameras"):
         if fld not in doc:
             raise FormatError(f"missing field {fld!r}", path=path, field=fld)

@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from swarmpose.errors import ConfigError, DataError, FormatError
+from swarmpose.io.files import read_json_object
 
 __all__ = [
     "ParameterSpec",
@@ -142,15 +143,11 @@ class Subject:
     def load(cls, path: str | Path) -> Subject:
         path = Path(path)
         try:
-            data = json.loads(path.read_text(encoding="utf-8"))
+            data = read_json_object(path)  # not UTF-8, not JSON or not an object: a FormatError naming the file
         except FileNotFoundError:
             raise DataError(f"{path}: subject file not found") from None
         except OSError as exc:
             raise DataError(f"{path}: cannot read the subject file: {exc}") from exc
-        except UnicodeDecodeError:
-            raise FormatError("not a UTF-8 text file (a subject JSON file was expected)", path=path) from None
-        except json.JSONDecodeError as exc:
-            raise FormatError(f"not valid JSON ({exc.msg})", path=path, line=exc.lineno) from None
         return cls.from_dict(data, path=path)
 
 
@@ -335,24 +332,18 @@ def builtin_specs() -> tuple[str, ...]:
 
 def load_spec(name_or_path: str | Path) -> BodySpec:
     """Load a shipped spec by name (``"balan31"``, ``"full45"``) or a spec file by path."""
-    text: str
     path: object
     if isinstance(name_or_path, str) and name_or_path in builtin_specs():
         res = resources.files("swarmpose.models") / f"{name_or_path}.json"
-        text, path = res.read_text(encoding="utf-8"), f"swarmpose/models/{name_or_path}.json"
+        path = f"swarmpose/models/{name_or_path}.json"
+        data = json.loads(res.read_text(encoding="utf-8"))  # shipped with the package
     else:
-        p = Path(name_or_path)
-        if not p.is_file():
+        path = Path(name_or_path)
+        if not path.is_file():
             raise ConfigError(f"unknown body model {str(name_or_path)!r}: not a shipped model "
                               f"({', '.join(builtin_specs())}) and not a file")
         try:
-            text, path = p.read_text(encoding="utf-8"), p
+            data = read_json_object(path)  # not UTF-8, not JSON or not an object: a FormatError naming the file
         except OSError as exc:
-            raise DataError(f"{p}: cannot read the body model spec: {exc}") from exc
-        except UnicodeDecodeError:
-            raise FormatError("not a UTF-8 text file (a body model spec JSON file was expected)", path=p) from None
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise FormatError(f"not valid JSON ({exc.msg})", path=path, line=exc.lineno) from None
+            raise DataError(f"{path}: cannot read the body model spec: {exc}") from exc
     return BodySpec.from_dict(data, path=path)

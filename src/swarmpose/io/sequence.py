@@ -24,7 +24,7 @@ import math
 import os
 import shutil
 import zipfile
-from collections import deque
+from collections import Counter, deque
 from collections.abc import Iterator, Mapping, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
@@ -874,7 +874,7 @@ def open_sequence(path: str | os.PathLike[str]) -> MultiViewSequence:
     if not isinstance(view_files, dict) or sorted(view_files) != sorted(views):
         raise FormatError(f"'files.views' must map every view {views} to its archive", path=meta_path,
                           field="files.views")
-    shared = sorted({str(f) for f in view_files.values() if list(map(str, view_files.values())).count(str(f)) > 1})
+    shared = sorted(f for f, n in Counter(map(str, view_files.values())).items() if n > 1)
     if shared:
         raise FormatError(f"'files.views' gives two views the same archive {shared} (each view has its own images)",
                           path=meta_path, field="files.views")
