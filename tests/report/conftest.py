@@ -122,7 +122,7 @@ def build_results(root: Path, *, runs: int = 2, invalid: tuple[int, ...] = ()) -
                "frames_per_s": float(np.mean([r["frames_per_s"] for r in per_run])), "frames": T,
                "worst": {"run": agg["worst"]["run"], "d_mean_mm": agg["worst"]["d_mean"],
                          "d_max_mm": agg["worst"]["d_max"], "mmta": agg["worst"]["mmta"]},
-               "d_mean_std_over_runs": agg["d_mean_std_over_runs"], "per_joint_mm": agg["per_joint"],
+               "d_mean_std_over_runs_mm": agg["d_mean_std_over_runs"], "per_joint_mm": agg["per_joint"],
                "per_run": per_run, "sequence": str(seq_dir), "fitness": "silhouette_edge", "seed": 3,
                "out_dir": str(res)}
     (res / "summary.json").write_text(json.dumps(summary, indent=1))

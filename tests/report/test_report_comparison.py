@@ -20,7 +20,7 @@ def _row(res_dir: Path, label: str, fps: float, out_dir: str) -> dict:
     s = json.loads((res_dir / "summary.json").read_text())
     return {"label": label, "algo": label.split()[0], "fps": fps, "variant": "", "sequence": "walk", "runs": 2,
             "frames": 6, "evals_per_frame": 1000, "d_mean_mm": s["d_mean_mm"], "d_max_mm": s["d_max_mm"],
-            "d_mean_std_over_runs": 1.0, "worst_d_mean_mm": s["worst"]["d_mean_mm"], "ik_floor_mm": s["ik_floor_mm"],
+            "d_mean_std_over_runs_mm": 1.0, "worst_d_mean_mm": s["worst"]["d_mean_mm"], "ik_floor_mm": s["ik_floor_mm"],
             "mmta": s["mmta"], "mmtp_mm": s["mmtp_mm"], "frames_per_s": 3.0, "reference": "thesis", "out_dir": out_dir}
 
 
@@ -143,3 +143,15 @@ def test_the_error_over_time_figure_says_how_many_runs_each_entry_has(comparison
     (apf,) = [t for t in legend if t.startswith("apf 20fps")]
     (sppso,) = [t for t in legend if t.startswith("sppso 20fps")]
     assert apf.endswith(", 1 run(s)") and "run(s)" not in sppso
+
+
+def test_a_comparison_written_before_the_spread_had_its_unit_still_reads(comparison: Path):
+    """comparison.json files written before the key was named ``d_mean_std_over_runs_mm`` keep working."""
+    path = comparison / "comparison.json"
+    report = json.loads(path.read_text())
+    for row in report["rows"]:
+        row["d_mean_std_over_runs"] = row.pop("d_mean_std_over_runs_mm") + 1.5
+    path.write_text(json.dumps(report))
+    rows = load_comparison(comparison)["rows"]
+    assert [r["d_mean_std_over_runs_mm"] for r in rows] == [2.5, 2.5]
+    assert "± 2.5 |" in comparison_table(load_comparison(comparison))

@@ -38,6 +38,8 @@ def test_results_folder_contents(short_sequence, tmp_path):
     assert summary["evals_per_frame"] == 1000 and summary["runs"] == 2
     maxima = [r["d_max_mm"] for r in summary["per_run"]]
     assert summary["d_max_mm"] == pytest.approx(np.mean(maxima)) and summary["d_max_over_runs_mm"] == max(maxima)
+    d_means = [r["d_mean_mm"] for r in summary["per_run"]]
+    assert summary["d_mean_std_over_runs_mm"] == pytest.approx(np.std(d_means, ddof=1))
     config = json.loads((tmp_path / "config.json").read_text())
     assert config["seed"] == 1 and config["run_seeds"]["1"] == [1, 1] and "numpy" in config["versions"]
     with np.load(tmp_path / "run_000" / "joints.npz", allow_pickle=False) as z:

@@ -109,7 +109,7 @@ def _run_cells(name: str, configs: list[tuple[Entry, TrackConfig]], planned: dic
                "fitness_options": e.fitness_options, "sequence": seq.name, "runs": len(mine),
                "frames": int(len(setup.frame_indices)),
                "evals_per_frame": setup.evals_per_frame, "d_mean_mm": agg["d_mean"], "d_max_mm": agg["d_max"],
-               "d_max_over_runs_mm": agg["d_max_over_runs"], "d_mean_std_over_runs": agg["d_mean_std_over_runs"],
+               "d_max_over_runs_mm": agg["d_max_over_runs"], "d_mean_std_over_runs_mm": agg["d_mean_std_over_runs"],
                "worst_d_mean_mm": agg["worst"]["d_mean"],
                "ik_floor_mm": setup.ik_floor_mm, "mmta": agg["mmta"], "mmtp_mm": agg["mmtp"],
                "frames_per_s": float(np.mean([r["frames_per_s"] for r in mine])), "reference": e.reference,

@@ -28,7 +28,7 @@ __all__ = ["comparison_table", "comparison_figures", "write_comparison", "load_c
 #: Entry colours (Okabe-Ito, without yellow, which is faint on white).
 _ENTRY_RGB = ((0, 114, 178), (213, 94, 0), (0, 158, 115), (204, 121, 167), (86, 180, 233), (230, 159, 0),
               (0, 0, 0))
-_ROW_KEYS = ("label", "fps", "sequence", "runs", "evals_per_frame", "d_mean_mm", "d_max_mm", "d_mean_std_over_runs",
+_ROW_KEYS = ("label", "fps", "sequence", "runs", "evals_per_frame", "d_mean_mm", "d_max_mm", "d_mean_std_over_runs_mm",
              "worst_d_mean_mm", "ik_floor_mm", "mmta", "frames_per_s", "out_dir")
 
 
@@ -48,7 +48,7 @@ def comparison_table(report: dict[str, Any]) -> str:
     for r in report["rows"]:
         largest = f" ({r['d_max_over_runs_mm']:.1f})" if r.get("d_max_over_runs_mm") is not None else ""
         lines.append(f"| {r['sequence']} | {r['label']} | {r['evals_per_frame']} | {r['d_mean_mm']:.1f} "
-                     f"± {r['d_mean_std_over_runs']:.1f} | {r['worst_d_mean_mm']:.1f} | {r['d_max_mm']:.1f}{largest} "
+                     f"± {r['d_mean_std_over_runs_mm']:.1f} | {r['worst_d_mean_mm']:.1f} | {r['d_max_mm']:.1f}{largest} "
                      f"| {r['ik_floor_mm']:.1f} | {100 * r['mmta']:.1f} | {r['frames_per_s']:.2f} |")
     refs = sorted({r["reference"] for r in report["rows"] if r.get("reference")})
     if refs:
@@ -69,6 +69,8 @@ def load_comparison(folder: str | os.PathLike[str]) -> dict[str, Any]:
     if not isinstance(report["rows"], list):
         raise FormatError("'rows' must be a list of entries", path=path)
     for i, row in enumerate(report["rows"]):
+        if isinstance(row, dict) and "d_mean_std_over_runs" in row:  # the key's name before the unit was added
+            row.setdefault("d_mean_std_over_runs_mm", row.pop("d_mean_std_over_runs"))
         missing = [k for k in _ROW_KEYS if not isinstance(row, dict) or k not in row]
         if missing:
             raise FormatError(f"rows[{i}] has no {', '.join(repr(k) for k in missing)}", path=path)

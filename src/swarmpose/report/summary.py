@@ -216,7 +216,7 @@ def write_summary(
         trows.append([f"**worst** (run {wr['run']})", _f(w.get("d_mean_mm", wr["d_mean_mm"])),
                       _f(w.get("d_max_mm", wr["d_max_mm"])), _pct(w.get("mmta", wr["mmta"])),
                       _f(wr["mmtp_mm"]), _f(wr["frames_per_s"], ".2f")])
-        spread = s.get("d_mean_std_over_runs")
+        spread = s.get("d_mean_std_over_runs_mm", s.get("d_mean_std_over_runs"))  # the key before the unit was added
         if spread is None:
             spread = spread_over_runs([r["d_mean_mm"] for r in rows])
     ik = res.ik_frame_error_mm

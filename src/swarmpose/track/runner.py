@@ -443,7 +443,7 @@ def _track_jobs(sequence: str | Path, config: TrackConfig, runs: int, out_dir: P
         "frame_interval_s": _intervals(setup.frame_times),
         "worst": {"run": agg["worst"]["run"], "d_mean_mm": agg["worst"]["d_mean"],
                   "d_max_mm": agg["worst"]["d_max"], "mmta": agg["worst"]["mmta"]},
-        "d_mean_std_over_runs": agg["d_mean_std_over_runs"],
+        "d_mean_std_over_runs_mm": agg["d_mean_std_over_runs"],  # sample SD of the runs' D_mean
         "per_joint_mm": agg["per_joint"],
         "per_run": [{"run": r["run"], "d_mean_mm": r["d_mean"], "d_max_mm": r["d_max"], "mmta": r["mmta"],
                      "mmtp_mm": r["mmtp"], "sigma_mm": r["sigma"], "frames_per_s": r["frames_per_s"]}
