@@ -31,6 +31,28 @@ def test_ik_reports_the_file_it_wrote(mocap_dir: Path, tmp_path: Path):
 def test_help_keeps_the_bracketed_forms():
     text = " ".join(CliRunner().invoke(app, ["track", "--help"], env={"COLUMNS": "250"}).output.split())
     assert "SeedSequence([seed, k])" in text and "constant-velocity[:D][@GROUP+...]" in text
+    assert "pip install 'swarmpose[torch]'" in text and "pip install 'swarmpose[dask]'" in text
+
+
+def test_no_help_text_has_a_bracket_that_rich_would_take_for_a_style_tag():
+    """Rich reads ``[word]`` in a help text as markup and drops it (``pip install 'swarmpose[torch]'`` came
+    out as ``'swarmpose'``); such brackets must be written ``\\[word]``."""
+    import re
+
+    import click
+    import typer
+
+    tag = re.compile(r"(?<!\\)\[[a-zA-Z#/@]")
+
+    def texts(cmd: click.Command, path: str):
+        yield path, cmd.help or ""
+        for p in cmd.params:
+            yield f"{path} {p.name}", getattr(p, "help", None) or ""
+        for name, sub in getattr(cmd, "commands", {}).items():
+            yield from texts(sub, f"{path} {name}")
+
+    bad = [(where, t) for where, t in texts(typer.main.get_command(app), "swarmpose") if tag.search(t)]
+    assert not bad
 
 
 def test_errors_under_json_print_one_error_object(tmp_path: Path):

@@ -151,6 +151,8 @@ def test_dispatch_helpers(he1, tmp_path, monkeypatch):
     ("humaneva:/x/S1/Walking_1?frames=6", "frames must look like"),
     ("humaneva:/x/S1/Walking_1?dataset=III", "dataset must be"),
     ("humaneva:", "needs a path"),
+    ("humaneva:/x/S1/Walking_1?cams=", "cams names no camera"),
+    ("humaneva:/x/S1/Walking_1?cams=,", "cams names no camera"),
 ])
 def test_spec_errors(spec, match):
     with pytest.raises(ConfigError, match=match):

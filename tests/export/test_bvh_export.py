@@ -214,9 +214,14 @@ def test_uneven_tracked_frames_are_put_on_an_even_clock():
     assert set(np.round(np.diff(t) * 1000).astype(int)) == {33, 50}
     params = np.stack([1000.0 * t, np.sin(t)], axis=1)  # 1 m/s and a smooth angle
     out, grid, resampled = uniform_clock(params, t, 25.0)
-    assert resampled and np.allclose(np.diff(grid), 0.04) and grid[0] == t[0] and grid[-1] <= t[-1] + 1e-12
+    assert resampled and np.allclose(np.diff(grid), 0.04) and grid[0] == t[0] and len(grid) == len(t)
     np.testing.assert_allclose(np.diff(out[:, 0]), 40.0, atol=1e-9)  # 40 mm per 40 ms frame
     np.testing.assert_allclose(out[:, 1], np.sin(grid), atol=2e-3)
+    for n in range(2, 13):  # every tracked frame gives a BVH frame; the last may be held up to 1/120 s
+        out, grid, _ = uniform_clock(params[:n], t[:n], 25.0)
+        assert len(grid) == n and grid[-1] - t[n - 1] <= 0.5 / 60 + 1e-12
+        if grid[-1] >= t[n - 1]:
+            np.testing.assert_array_equal(out[-1], params[n - 1])  # held, not extrapolated
     even = np.arange(10) / 20
     same, _, again = uniform_clock(params[:10], even, 20.0)
     assert not again and same is not None and np.array_equal(same, params[:10])

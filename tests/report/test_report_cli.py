@@ -26,7 +26,7 @@ def test_report_json(fake_results, tmp_path: Path):
     out = CliRunner().invoke(app, ["report", str(res), "--frames", "1", "--json"])
     assert out.exit_code == 0, out.output
     data = json.loads(out.stdout)
-    assert set(data) == {"summary", "html", "figures", "overlays", "video"}
+    assert set(data) == {"summary", "html", "figures", "overlays", "video", "notes"}
     assert data["video"] is None and len(data["overlays"]) == 1 and len(data["figures"]) == 2
     assert all(Path(p).is_file() for p in [data["summary"], data["html"], *data["figures"], *data["overlays"]])
 
@@ -104,6 +104,12 @@ def test_an_unknown_suite_fails_before_any_clip_is_synthesised(tmp_path: Path, m
     bad = CliRunner().invoke(app, ["compare", "thesis-apf", "--downsample", "3", "--out", str(tmp_path / "cmp")])
     assert bad.exit_code == 2 and "downsample must be 1, 2, 4 or 8" in " ".join(bad.output.split())
     assert not (tmp_path / "cache").exists() and not (tmp_path / "cmp").exists()
+    # a folder that is not a sequence fails when the suite loads it, and leaves no --out folder either
+    (tmp_path / "notseq").mkdir()
+    bad = CliRunner().invoke(app, ["compare", "thesis-apf", "--clip", str(tmp_path / "notseq"),
+                                   "--out", str(tmp_path / "cmp")])
+    assert bad.exit_code == 2 and "sequence.json: missing" in " ".join(bad.output.split())
+    assert not (tmp_path / "cmp").exists()
 
 
 def test_report_with_frames_without_ground_truth(results_builder, tmp_path: Path):

@@ -155,3 +155,6 @@ def test_a_comparison_written_before_the_spread_had_its_unit_still_reads(compari
     rows = load_comparison(comparison)["rows"]
     assert [r["d_mean_std_over_runs_mm"] for r in rows] == [2.5, 2.5]
     assert "± 2.5 |" in comparison_table(load_comparison(comparison))
+    report = load_comparison(comparison)
+    report["rows"][0]["runs"] = 1
+    assert "(1 run) |" in comparison_table(report) and "± 2.5 |" in comparison_table(report)  # no "± 0.0"

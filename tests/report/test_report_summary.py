@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pytest
 
+from swarmpose.errors import DataError
 from swarmpose.joints import JOINTS15
 from swarmpose.report import load_results, make_report, write_summary
 
@@ -30,7 +31,7 @@ def test_make_report_writes_everything(results_copy: Path):
         assert p.is_file() and p.stat().st_size > 1000, p
     assert paths.notes == []
     d = paths.to_dict()
-    assert set(d) == {"summary", "html", "figures", "overlays", "video"}
+    assert set(d) == {"summary", "html", "figures", "overlays", "video", "notes"} and d["notes"] == []
     md = paths.summary.read_text()
     for p in [*paths.figures, *paths.overlays]:
         assert f"]({p.relative_to(rep).as_posix()})" in md
@@ -103,6 +104,12 @@ def test_report_without_sequence_skips_overlays(results_copy: Path, tmp_path: Pa
     assert len(paths.notes) == 1 and "overlays skipped" in paths.notes[0]
     assert "> Note: overlays skipped" in paths.summary.read_text()
     assert all(p.is_file() for p in paths.figures)
+    assert paths.to_dict()["notes"] == paths.notes  # --json says so too, not only stderr
+    # a video is asked for: no report that exits 0 without it
+    (paths.summary.parent / "summary.md").unlink()
+    with pytest.raises(DataError, match="no video without the tracked sequence's images.*moved"):
+        make_report(results_copy, video=True)
+    assert not (paths.summary.parent / "summary.md").exists()
 
 
 def test_single_run_report(results_copy: Path):

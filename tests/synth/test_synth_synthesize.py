@@ -9,7 +9,7 @@ import pytest
 from typer.testing import CliRunner
 
 from swarmpose.cli.app import app
-from swarmpose.errors import DataError
+from swarmpose.errors import DataError, FormatError
 from swarmpose.io.sequence import open_sequence
 from swarmpose.synth.synthesize import SynthReport, cached_sequence, synthesize
 
@@ -94,6 +94,13 @@ def test_cached_sequence(walk_clip_path, tmp_path, monkeypatch):
     assert [p.name for p in (tmp_path / "cache").iterdir() if p.name.startswith(".")] == []
     with pytest.raises(DataError, match="no such clip"):
         cached_sequence(tmp_path / "missing.bvh", tmp_path / "cache")
+    # a clip that cannot be read leaves no (empty) cache folders behind, and a cache that is there stays
+    bad = tmp_path / "cut.bvh"
+    bad.write_text(walk_clip_path.read_text()[:400])
+    for cache in (tmp_path / "new" / "sequences", tmp_path / "cache"):
+        with pytest.raises(FormatError, match="cut.bvh, line 17"):
+            cached_sequence(bad, cache, progress=False)
+    assert not (tmp_path / "new").exists() and {p1, p3} <= set((tmp_path / "cache").iterdir())
 
 
 def test_cli_synth_json_and_show(walk_clip_path, short_walk: SynthReport, tmp_path):

@@ -527,6 +527,15 @@ def test_the_default_results_folder_names_every_setting_that_changes_the_results
     assert default_results_name("walk", TrackConfig(model="full45")) != default_results_name("walk", TrackConfig())
 
 
+def test_the_default_comparison_folder_names_the_seed_resolution_and_frames():
+    """`compare`'s default folder, like `track`'s: a seed sweep or a quick try at a lower resolution does not
+    land in the folder of the full run (where it was refused as a resume with other settings)."""
+    from swarmpose.cli.compare_commands import default_comparison_name
+
+    assert default_comparison_name("thesis-apf", seed=0, downsample=1, max_frames=None) == "thesis-apf"
+    assert default_comparison_name("thesis-budget", seed=2, downsample=8, max_frames=1) == "thesis-budget-1frames-s2-ds8"
+
+
 def test_track_flags_reach_the_tracker(short_sequence, tmp_path):
     """The --backend, --model, --fitness and --motion flags of `swarmpose track`, end to end on the short walk:
     each lands in config.json and changes what is tracked as it should."""

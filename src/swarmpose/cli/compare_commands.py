@@ -11,6 +11,20 @@ from swarmpose.cli.common import console, fail_on_user_error, print_json
 from swarmpose.cli.demo import DEFAULT_CLIP
 
 
+def default_comparison_name(suite: str, *, seed: int, downsample: int, max_frames: int | None) -> str:
+    """``<suite>`` and, as `track`'s default folder, each setting that changes the results and is not the
+    default (``-<N>frames``, ``-s<seed>``, ``-ds<N>``): another seed or a quick try at a lower resolution
+    gets its own folder instead of being refused as a resume with other settings."""
+    parts = [suite]
+    if max_frames is not None:
+        parts.append(f"{max_frames}frames")
+    if seed:
+        parts.append(f"s{seed}")
+    if downsample != 1:
+        parts.append(f"ds{downsample}")
+    return "-".join(parts)
+
+
 @app.command()
 @fail_on_user_error
 def compare(
@@ -22,16 +36,18 @@ def compare(
                                                             "default: the shared walking clip."),
     runs: int = typer.Option(5, min=1, help="Runs per entry."),
     seed: int = typer.Option(0, min=0, help="Seed (>= 0); run k of every entry draws from SeedSequence(\\[seed, k])."),
-    out: Path = typer.Option(None, help="Output folder (default results/compare/<suite>)."),
+    out: Path = typer.Option(None, help="Output folder (default results/compare/<suite>, followed by each "
+                                        "non-default setting that changes results: -<N>frames, -s<seed>, "
+                                        "-ds<N>)."),
     downsample: int = typer.Option(1, help="Image downsampling: 1 (full resolution), 2, 4 or 8."),
     workers: int = typer.Option(None, min=1, help="Parallel local processes (default: one per core)."),
     scheduler: str = typer.Option(None, help="Dask scheduler address, e.g. tcp://host:8786: run the jobs on that "
-                                             "cluster instead (pip install 'swarmpose[dask]')."),
+                                             "cluster instead (pip install 'swarmpose\\[dask]')."),
     resume: bool = typer.Option(False, help="Continue interrupted runs."),
     max_frames: int = typer.Option(None, min=1, help="A quick try of a suite: N frames at the suite's lowest "
                                                      "rate, and the same stretch of time at the others (about "
                                                      "3N frames at 60 fps when the lowest is 20); the default "
-                                                     "--out then ends in -<N>frames."),
+                                                     "--out then has -<N>frames after the suite's name."),
     list_only: bool = typer.Option(False, "--list", help="Only list the suite's entries (every suite's without "
                                                           "SUITE): algorithm, frame rate, variant, fitness, "
                                                           "evaluations per frame, paper; nothing is run."),
@@ -41,7 +57,7 @@ def compare(
 ) -> None:
     """Run an experiment suite (entries × clips × runs in parallel) and write a comparison report.
 
-    OUT (default results/compare/SUITE) gets comparison.json, comparison.md (the table, the mean error
+    OUT (default results/compare/SUITE, with -s<seed> etc. for non-default settings) gets comparison.json, comparison.md (the table, the mean error
     over time of every entry and every run's D_mean as figures), comparison.html (the same as one
     self-contained page) and one `swarmpose track` results folder per clip and entry
     (OUT/<clip>/<entry>/, each open to `swarmpose report`). `swarmpose report OUT` redraws the figures.
@@ -65,7 +81,8 @@ def compare(
     client = connect_scheduler(scheduler) if scheduler else None  # a wrong address fails before any synthesis
     progress = not (json_out or no_progress)
     seqs = [resolve_sequence(s, progress=progress) for s in (sources or [str(DEFAULT_CLIP)])]
-    out = out or Path("results") / "compare" / (suite if max_frames is None else f"{suite}-{max_frames}frames")
+    out = (out or Path("results") / "compare" / default_comparison_name(suite, seed=seed, downsample=downsample,
+                                                                       max_frames=max_frames)).absolute()
     report = run_suite(suite, seqs, out, runs=runs, seed=seed, workers=workers, scheduler=client,
                        resume=resume, downsample=downsample, progress=progress, max_frames=max_frames)
     if json_out:

@@ -48,8 +48,9 @@ def track(
     runs: int = typer.Option(1, min=1, help="Independent runs (different random streams)."),
     seed: int = typer.Option(0, min=0, help="Seed (>= 0); run k draws from SeedSequence(\\[seed, k]) (recorded)."),
     out: Path = typer.Option(None, help="Results folder (default results/<sequence>-<algo>-<fps>fps, followed by "
-                                        "every non-default setting that changes results: -s<seed>, -ds<N>, "
-                                        "model, fitness, variant, options, motion, -<N>frames)."),
+                                        "every non-default setting that changes results, in this order: "
+                                        "-<N>frames, -s<seed>, -ds<N>, model, fitness, variant, options, "
+                                        "motion)."),
     resume: bool = typer.Option(False, help="Continue an interrupted run in --out without redoing frames."),
     model: str = typer.Option("balan31", help="Body model name or spec file."),
     fitness: str = typer.Option(
@@ -64,7 +65,7 @@ def track(
     downsample: int = typer.Option(1, help="Image downsampling: 1 (full resolution), 2, 4 or 8 (faster, coarser)."),
     backend: str = typer.Option(
         "numba", help="Fitness backend: numba (default, all CPU cores), torch (PyTorch on the GPU when there is "
-                      "one: numba's pixel and sample counts; pip install 'swarmpose[torch]') or reference "
+                      "one: numba's pixel and sample counts; pip install 'swarmpose\\[torch]') or reference "
                       "(plain numpy, slow: the definition the fast backends are tested against)."),
     fitness_options: str = typer.Option(
         "", help="Fitness options, key=value[,...], applied on top of the options each optimiser stage sets "
@@ -82,11 +83,11 @@ def track(
                               "step, D = 1 by default, only the named parameter groups if given, e.g. "
                               "@root_position; an extension, not in the papers, and worse on the walk)."),
     max_frames: int = typer.Option(None, min=1, help="Track only the first N frames at --fps (a quick try; the "
-                                                     "default --out then ends in -<N>frames)."),
+                                                     "default --out then has -<N>frames after the rate)."),
     workers: int = typer.Option(None, min=1, help="Parallel worker processes (default: one per core, at most --runs); "
                                                   "each uses cores / workers numba threads."),
     scheduler: str = typer.Option(None, help="Run on a Dask cluster at this address, e.g. tcp://host:8786 "
-                                             "(pip install 'swarmpose[dask]'; sequence and --out must be at the "
+                                             "(pip install 'swarmpose\\[dask]'; sequence and --out must be at the "
                                              "same path on every worker)."),
     no_progress: bool = typer.Option(False, "--no-progress", help="No progress bars (for batch logs; --json "
                                                                    "implies it)."),

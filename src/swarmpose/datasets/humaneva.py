@@ -1910,6 +1910,9 @@ def parse_humaneva_spec(spec: str | os.PathLike[str]) -> HumanEvaSpec:
             raise ConfigError(f"unknown humaneva option {k!r}; known: {', '.join(_SPEC_KEYS)}")
         if k == "cams":
             opts["cameras"] = tuple(c.strip() for c in v.split(",") if c.strip())
+            if not opts["cameras"]:
+                raise ConfigError("cams names no camera; give a comma-separated list such as cams=C1,C2,C3 "
+                                  "(or leave it out for every camera)")
         elif k == "split":
             opts["split"] = v
         elif k == "frames":

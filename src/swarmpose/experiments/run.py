@@ -11,7 +11,7 @@ import numpy as np
 
 from swarmpose.errors import ConfigError
 from swarmpose.experiments.suites import Entry, suite
-from swarmpose.io.lock import folder_lock
+from swarmpose.io.lock import folder_lock, remove_unused_folder
 from swarmpose.metrics import aggregate_runs
 from swarmpose.report.comparison import write_comparison
 from swarmpose.track.runner import (
@@ -77,14 +77,16 @@ def run_suite(name: str, sequences: list[Path], out_dir: Path, *, runs: int = 5,
                                   f"{seq} (give clips with different names)")
             check_results_folder(cell, seq, cfg, runs, resume)  # other settings in the cell: refused, named
             planned[cell] = (seq, e, cfg)
+    fresh = not out_dir.exists()
     with folder_lock(out_dir):  # one writer: a second compare (or --resume) on this folder is refused
         return _run_cells(name, configs, planned, out_dir, runs=runs, seed=seed, workers=workers,
-                          scheduler=scheduler, resume=resume, progress=progress, max_frames=max_frames)
+                          scheduler=scheduler, resume=resume, progress=progress, max_frames=max_frames,
+                          fresh=fresh)
 
 
 def _run_cells(name: str, configs: list[tuple[Entry, TrackConfig]], planned: dict[Path, tuple[Any, Entry, TrackConfig]],
                out_dir: Path, *, runs: int, seed: int, workers: int | None, scheduler: Any, resume: bool,
-               progress: bool, max_frames: int | None) -> dict[str, Any]:
+               progress: bool, max_frames: int | None, fresh: bool = False) -> dict[str, Any]:
     jobs: list[Job] = []
     cells: list[tuple[Entry, Path, Path, Any]] = []
     try:
@@ -99,6 +101,8 @@ def _run_cells(name: str, configs: list[tuple[Entry, TrackConfig]], planned: dic
                      for k in range(runs)]
     except BaseException:
         close_client(scheduler)
+        if fresh:  # a sequence or setting that fails before any tracking leaves no empty folders behind
+            remove_unused_folder(out_dir)
         raise
     results = run_jobs(jobs, workers=workers, scheduler=scheduler, progress=progress)
     rows = []

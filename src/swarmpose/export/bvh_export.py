@@ -179,9 +179,12 @@ def uniform_clock(params: np.ndarray, frame_times: np.ndarray, frame_rate: float
     A tracking rate that does not divide the sequence's (25 fps from 60) tracks the nearest frames, 33 and
     50 ms apart; written one per ``1 / frame_rate`` they would warp time by up to 25 % (velocities off by
     as much, alternating). When an interval differs from ``1 / frame_rate`` by more than ``tolerance``
-    (relative), every parameter is interpolated linearly in time onto ``t_0 + k / frame_rate`` within the
-    tracked span; otherwise the poses are returned as they are. Angles are interpolated as the tracker
-    keeps them (continuous, unwrapped), between neighbours at most one tracked interval apart.
+    (relative), every parameter is interpolated linearly in time onto ``t_0 + k / frame_rate``; otherwise
+    the poses are returned as they are. The clock has as many steps as fit the tracked span, rounded to the
+    nearest: T frames tracked at the nearest frames of a ``frame_rate`` clock give T frames, the last of
+    which may lie up to half a step past the last tracked time and holds its pose (25 fps from 60: frame 3
+    at 120 ms, tracked at 117). Angles are interpolated as the tracker keeps them (continuous, unwrapped),
+    between neighbours at most one tracked interval apart.
     """
     p = np.asarray(params, dtype=np.float64)
     t = np.asarray(frame_times, dtype=np.float64)
@@ -194,8 +197,8 @@ def uniform_clock(params: np.ndarray, frame_times: np.ndarray, frame_rate: float
     step = 1.0 / frame_rate
     if len(t) < 2 or np.all(np.abs(np.diff(t) - step) <= tolerance * step):
         return p, t, False
-    grid = t[0] + np.arange(int(np.floor((t[-1] - t[0]) / step + 1e-9)) + 1) * step
-    out = np.stack([np.interp(grid, t, p[:, d]) for d in range(p.shape[1])], axis=1)
+    grid = t[0] + np.arange(int(np.round((t[-1] - t[0]) / step)) + 1) * step
+    out = np.stack([np.interp(grid, t, p[:, d]) for d in range(p.shape[1])], axis=1)  # held past t[-1]
     return out, grid, True
 
 

@@ -20,7 +20,7 @@ try:
 except ImportError:  # pragma: no cover - not POSIX
     fcntl = None
 
-__all__ = ["LOCK_NAME", "folder_lock"]
+__all__ = ["LOCK_NAME", "folder_lock", "remove_unused_folder"]
 
 #: Name of the lock file inside a locked folder.
 LOCK_NAME = ".swarmpose.lock"
@@ -53,3 +53,17 @@ def folder_lock(folder: Path) -> Iterator[Path]:
         f.write(f"{os.getpid()}\n")
         f.flush()
         yield path  # closing the file releases the lock
+
+
+def remove_unused_folder(folder: Path) -> None:
+    """Remove what a failed start left in a folder it created: the lock file and every empty folder, from
+    the bottom up (``folder`` itself too when nothing else is left). Files are kept."""
+    folder = Path(folder)
+    (folder / LOCK_NAME).unlink(missing_ok=True)
+    if not folder.is_dir():
+        return
+    for here, _, _ in sorted(os.walk(folder), key=lambda w: -len(Path(w[0]).parts)):  # deepest first
+        try:
+            Path(here).rmdir()
+        except OSError:  # not empty: it keeps what was written there
+            pass

@@ -87,10 +87,11 @@ class ReportPaths:
     notes: list[str] = field(default_factory=list)
 
     def to_dict(self) -> dict[str, Any]:
-        """``{"summary", "html", "figures", "overlays", "video"}`` with paths as strings (the CLI's ``--json``)."""
+        """``{"summary", "html", "figures", "overlays", "video", "notes"}`` with paths as strings (the CLI's
+        ``--json``; ``notes`` says what was skipped and why, as ``compare``'s report does)."""
         return {"summary": str(self.summary), "html": None if self.html is None else str(self.html), "figures": [str(p) for p in self.figures],
                 "overlays": [str(p) for p in self.overlays],
-                "video": None if self.video is None else str(self.video)}
+                "video": None if self.video is None else str(self.video), "notes": list(self.notes)}
 
 
 def make_report(
@@ -134,14 +135,21 @@ def make_report(
 
     Notes
     -----
-    Overlays and video need the sequence's images; when the sequence cannot be found they are
-    skipped with a note (in ``ReportPaths.notes`` and in ``summary.md``) and the rest is written;
-    a ``sequence`` given explicitly that is not the tracked sequence raises :class:`DataError`.
+    Overlays and video need the sequence's images. When the sequence cannot be found the overlays are
+    skipped with a note (in ``ReportPaths.notes`` and in ``summary.md``) and the rest is written; a video,
+    which is asked for, raises :class:`DataError` before anything is written, as does a ``sequence`` given
+    explicitly that is not the tracked sequence.
     """
     res = results_dir if isinstance(results_dir, Results) else load_results(results_dir)
     res.run(run)  # no such finished run: an error before any file of an earlier report is touched
     if sequence is not None and (overlay_frames > 0 or video):
         res.sequence_path(sequence)  # a wrong folder the user named is an error, before anything is drawn
+    if video:
+        try:
+            res.sequence_path(sequence)
+            _ = res.model
+        except DataError as exc:  # a report that exits 0 without the video asked for would pass for done
+            raise DataError(f"no video without the tracked sequence's images: {exc}") from exc
     out = Path(out_dir) if out_dir is not None else res.path / "report"
     out.mkdir(parents=True, exist_ok=True)
     figures = [error_over_time(res, out=out / "error_over_time.png"),

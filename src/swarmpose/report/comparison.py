@@ -47,8 +47,10 @@ def comparison_table(report: dict[str, Any]) -> str:
              "|---|---|---:|---:|---:|---:|---:|---:|---:|"]
     for r in report["rows"]:
         largest = f" ({r['d_max_over_runs_mm']:.1f})" if r.get("d_max_over_runs_mm") is not None else ""
+        # one run has no spread to measure: "± 0.0" would read as a measured zero
+        spread = f"± {r['d_mean_std_over_runs_mm']:.1f}" if int(r["runs"]) > 1 else "(1 run)"
         lines.append(f"| {r['sequence']} | {r['label']} | {r['evals_per_frame']} | {r['d_mean_mm']:.1f} "
-                     f"± {r['d_mean_std_over_runs_mm']:.1f} | {r['worst_d_mean_mm']:.1f} | {r['d_max_mm']:.1f}{largest} "
+                     f"{spread} | {r['worst_d_mean_mm']:.1f} | {r['d_max_mm']:.1f}{largest} "
                      f"| {r['ik_floor_mm']:.1f} | {100 * r['mmta']:.1f} | {r['frames_per_s']:.2f} |")
     refs = sorted({r["reference"] for r in report["rows"] if r.get("reference")})
     if refs:

@@ -456,6 +456,7 @@ def cached_sequence(
             shutil.rmtree(target, ignore_errors=True)  # damaged cache entry: rebuild it
     if target.exists() and not (target / "sequence.json").is_file():
         shutil.rmtree(target)  # an incomplete folder left by someone else
+    new_dirs = [d for d in (target.parent, *target.parent.parents) if not d.exists()]  # deepest first
     target.parent.mkdir(parents=True, exist_ok=True)
     tmp = target.parent / f".{target.name}.tmp-{os.getpid()}"
     if tmp.exists():
@@ -468,6 +469,14 @@ def cached_sequence(
         except OSError:
             if not (target / "sequence.json").is_file():  # not a concurrent writer's result
                 raise
+    except BaseException:  # a clip that cannot be synthesised leaves no empty cache folders behind
+        shutil.rmtree(tmp, ignore_errors=True)
+        for d in new_dirs:
+            try:
+                d.rmdir()
+            except OSError:  # not empty: another clip's cache is there now
+                break
+        raise
     finally:
         if tmp.exists():
             shutil.rmtree(tmp, ignore_errors=True)

@@ -26,7 +26,7 @@ import numpy as np
 
 from swarmpose.errors import ConfigError, DataError, FormatError
 from swarmpose.io.files import load_npz, read_json_object
-from swarmpose.io.lock import LOCK_NAME, folder_lock
+from swarmpose.io.lock import folder_lock, remove_unused_folder
 from swarmpose.metrics import TrackErrors, aggregate_runs
 from swarmpose.track.tracker import (
     TrackConfig,
@@ -410,9 +410,7 @@ def track_runs(sequence: str | Path, config: TrackConfig, runs: int, out_dir: Pa
         except BaseException:
             close_client(scheduler)
             if fresh:  # a source or setting that fails leaves no results folder behind
-                (out_dir / LOCK_NAME).unlink(missing_ok=True)
-                if out_dir.is_dir() and not any(out_dir.iterdir()):
-                    out_dir.rmdir()
+                remove_unused_folder(out_dir)
             raise
         return _track_jobs(sequence, config, runs, out_dir, setup, resume=resume, workers=workers,
                            scheduler=scheduler, progress=progress)
