@@ -119,7 +119,7 @@ def test_an_entry_with_more_runs_than_its_table_is_noted(comparison: Path):
 
 
 def test_the_error_over_time_figure_says_how_many_runs_each_entry_has(comparison: Path, monkeypatch):
-    """Its title says "mean of 2 run(s)" only while every entry has them; an entry with another count says
+    """Its title says "mean of 2 runs" only while every entry has them; an entry with another count says
     its own in the legend."""
     from matplotlib.figure import Figure
 
@@ -134,15 +134,15 @@ def test_the_error_over_time_figure_says_how_many_runs_each_entry_has(comparison
     monkeypatch.setattr(Figure, "savefig", record)
     write_comparison(comparison)
     title, legend = seen["comparison_over_time.png"]
-    assert "mean of 2 run(s) per entry" in title and not any("run(s)" in t for t in legend)
+    assert "mean of 2 runs per entry" in title and not any(" run" in t for t in legend)
 
     (comparison / "walk" / "apf_20fps" / "run_001" / "joints.npz").unlink()
     write_comparison(comparison)
     title, legend = seen["comparison_over_time.png"]
-    assert "mean of 2 run(s)" not in title and "finished runs" in title
+    assert "mean of 2 runs" not in title and "finished runs" in title
     (apf,) = [t for t in legend if t.startswith("apf 20fps")]
     (sppso,) = [t for t in legend if t.startswith("sppso 20fps")]
-    assert apf.endswith(", 1 run(s)") and "run(s)" not in sppso
+    assert apf.endswith(", 1 run") and " run" not in sppso
 
 
 def test_a_comparison_written_before_the_spread_had_its_unit_still_reads(comparison: Path):
@@ -158,3 +158,39 @@ def test_a_comparison_written_before_the_spread_had_its_unit_still_reads(compari
     report = load_comparison(comparison)
     report["rows"][0]["runs"] = 1
     assert "(1 run) |" in comparison_table(report) and "± 2.5 |" in comparison_table(report)  # no "± 0.0"
+
+
+def test_several_references_are_numbered_per_entry_and_one_is_said_once(comparison: Path):
+    report = load_comparison(comparison)
+    assert "Reference: thesis" in comparison_table(report) and "[1]" not in comparison_table(report)
+    report["rows"][1]["reference"] = "HumanEva (Sigal et al. 2010; eq. 8)"  # a ';' inside one reference
+    table = comparison_table(report)
+    assert "| sppso 20fps [1] |" in table and "| apf 20fps [2] |" in table
+    assert "1. thesis\n2. HumanEva (Sigal et al. 2010; eq. 8)" in table
+    assert "Sequence: walk" in table and "| sequence |" not in table  # one sequence: said once
+    report["rows"][1]["sequence"] = "jog"
+    table = comparison_table(report)
+    assert "Sequence:" not in table and "| sequence | entry |" in table and "| jog | apf 20fps [2] |" in table
+
+
+def test_the_largest_d_of_an_entry_written_before_the_key_comes_from_its_own_summary(comparison: Path):
+    """comparison.json rows without d_max_over_runs_mm: the table's '(largest)' is read from the entry's
+    summary.json (its per_run maxima) instead of promised in the header and left out."""
+    path = comparison / "comparison.json"
+    report = json.loads(path.read_text())
+    for row in report["rows"]:
+        row.pop("d_max_over_runs_mm", None)
+    path.write_text(json.dumps(report))
+    entry = comparison / "walk" / "sppso_20fps" / "summary.json"
+    s = json.loads(entry.read_text())
+    s.pop("d_max_over_runs_mm", None)
+    s["per_run"] = [{"run": 0, "d_max": 150.0}, {"run": 1, "d_max": 171.5}]  # as compare writes them
+    entry.write_text(json.dumps(s))
+    (comparison / "walk" / "apf_20fps" / "summary.json").unlink()
+    rows = load_comparison(comparison)["rows"]
+    assert rows[0]["d_max_over_runs_mm"] == 171.5 and rows[1]["d_max_over_runs_mm"] is None
+    table = comparison_table(load_comparison(comparison))
+    assert "mean of the runs (largest)" in table and " (171.5) |" in table and " (–) |" in table
+    for row in rows:
+        row["d_max_over_runs_mm"] = None
+    assert "(largest)" not in comparison_table({**report, "rows": rows})

@@ -6,6 +6,7 @@ import json
 import shutil
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from swarmpose.errors import DataError
@@ -35,6 +36,14 @@ def test_make_report_writes_everything(results_copy: Path):
     md = paths.summary.read_text()
     for p in [*paths.figures, *paths.overlays]:
         assert f"]({p.relative_to(rep).as_posix()})" in md
+    # each overlay says which run and frame it draws, its D and whether it is the run's worst frame
+    r0 = load_results(results_copy).run(0)
+    worst = int(np.nanargmax(r0.d_per_frame))
+    k = int(r0.frame_indices[worst])
+    assert any(p.name == f"overlay_run000_frame{k:06d}.png" for p in paths.overlays)
+    assert (f"*Run 0, sequence frame {k} (t = {r0.frame_times[worst]:.2f} s): D = {r0.d_per_frame[worst]:.1f} mm, "
+            "the run's worst frame.*") in md
+    assert md.count("the run's worst frame") == 1
     assert "](overlay_run000.gif)" in md
     # the page: every figure and overlay embedded, the video linked beside it
     assert paths.html == rep / "summary.html"
@@ -89,6 +98,8 @@ def test_summary_has_the_numbers(results_copy: Path):
     assert f"| IK floor | {s['ik_floor_mm']:.1f} |" in md
     for name in JOINTS15:
         assert f"| {name} | {s['per_joint_mm'][name]:.1f} |" in md
+    # each joint's smallest and largest run mean, which need not be the best and worst run's
+    assert "| joint | mean (mm) | min over runs (mm) | max over runs (mm) | IK floor (mm) |" in md
     cfg = json.loads((results_copy / "config.json").read_text())
     assert f"| numpy | `{cfg['versions']['numpy']}` |" in md
     assert "| algorithm | sppso |" in md and "| tracking frame rate | 20 fps |" in md

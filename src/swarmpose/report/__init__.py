@@ -8,7 +8,7 @@ Public API
     D per frame of each run (thin), their mean (thick) and the IK floor (dashed) over time, like
     thesis Fig. 6.5.
 ``per_joint_errors(results_dir) -> Path``
-    Error per joint: mean over runs with best/worst-run whiskers, the IK floor beside.
+    Error per joint: mean over runs with whiskers from the smallest to the largest run's, the IK floor beside.
 ``overlays(results_dir, frames=4, run=0) -> list[Path]``
     PNGs of chosen frames: every view with the estimated cones (left/right/centre in three colours)
     and the ground-truth skeleton.

@@ -16,6 +16,11 @@ DETECTION_RGB: tuple[int, int, int] = (86, 180, 233)
 IK_RGB: tuple[int, int, int] = (120, 120, 120)
 
 
+def count(n: int, noun: str) -> str:
+    """``1 run``, ``3 runs``: figure titles and notes say the number they know."""
+    return f"{n} {noun}{'' if n == 1 else 's'}"
+
+
 def rgb01(c: tuple[int, int, int]) -> tuple[float, float, float]:
     """An RGB 0-255 triple as matplotlib's 0-1 floats."""
     return (c[0] / 255.0, c[1] / 255.0, c[2] / 255.0)

@@ -20,8 +20,9 @@ import numpy as np
 
 from swarmpose.errors import DataError, FormatError
 from swarmpose.io.files import read_json_object
-from swarmpose.report._style import IK_RGB, rgb01
+from swarmpose.report._style import IK_RGB, count, rgb01
 from swarmpose.report.plots import _figure
+from swarmpose.report.results import largest_run_maximum
 
 __all__ = ["comparison_table", "comparison_figures", "write_comparison", "load_comparison", "entry_folder"]
 
@@ -40,21 +41,31 @@ def comparison_table(report: dict[str, Any]) -> str:
         n, slowest = report["max_frames"], report["lowest_fps"]
         part = (f"; only the first {n} frames at {slowest:g} fps ({(n - 1) / slowest:.2f} s; the same stretch at "
                 "the other rates), --max-frames: a quick try, not the papers' comparison")
-    lines = [f"# Suite `{report['suite']}` ({runs} per entry, seed {report['seed']}{part})", "",
-             "| sequence | entry | eval/frame | D_mean mm (± SD over runs) | worst run D_mean | D_max mm: mean of the runs "
-             "(largest) | IK floor mm "
-             "| MMTA % | frames/s |",
-             "|---|---|---:|---:|---:|---:|---:|---:|---:|"]
+    with_largest = any(r.get("d_max_over_runs_mm") is not None for r in report["rows"])
+    seqs = list(dict.fromkeys(str(r["sequence"]) for r in report["rows"]))
+    one_seq = len(seqs) == 1  # said once above the table instead of in every row
+    head = ["entry", "eval/frame", "D_mean mm (± SD over runs)", "worst run D_mean mm",
+            f"D_max mm: mean of the runs{' (largest)' if with_largest else ''}", "IK floor mm", "MMTA %", "frames/s"]
+    head = head if one_seq else ["sequence", *head]
+    lines = [f"# Suite `{report['suite']}` ({runs} per entry, seed {report['seed']}{part})", ""]
+    lines += [f"Sequence: {seqs[0]}", ""] if one_seq else []
+    lines += ["| " + " | ".join(head) + " |", "|" + "---|" * (1 if one_seq else 2) + "---:|" * 7]
+    # one paper reference for the whole suite is said under the table; several are numbered per entry
+    refs = list(dict.fromkeys(str(r["reference"]) for r in report["rows"] if r.get("reference")))
     for r in report["rows"]:
-        largest = f" ({r['d_max_over_runs_mm']:.1f})" if r.get("d_max_over_runs_mm") is not None else ""
+        largest = (f" ({r['d_max_over_runs_mm']:.1f})" if r.get("d_max_over_runs_mm") is not None
+                   else " (–)" if with_largest else "")
+        label = f"{r['label']} [{refs.index(r['reference']) + 1}]" if len(refs) > 1 and r.get("reference") else r["label"]
         # one run has no spread to measure: "± 0.0" would read as a measured zero
         spread = f"± {r['d_mean_std_over_runs_mm']:.1f}" if int(r["runs"]) > 1 else "(1 run)"
-        lines.append(f"| {r['sequence']} | {r['label']} | {r['evals_per_frame']} | {r['d_mean_mm']:.1f} "
-                     f"{spread} | {r['worst_d_mean_mm']:.1f} | {r['d_max_mm']:.1f}{largest} "
-                     f"| {r['ik_floor_mm']:.1f} | {100 * r['mmta']:.1f} | {r['frames_per_s']:.2f} |")
-    refs = sorted({r["reference"] for r in report["rows"] if r.get("reference")})
-    if refs:
-        lines += ["", "References: " + "; ".join(refs)]
+        cells = [label, str(r["evals_per_frame"]), f"{r['d_mean_mm']:.1f} {spread}", f"{r['worst_d_mean_mm']:.1f}",
+                 f"{r['d_max_mm']:.1f}{largest}", f"{r['ik_floor_mm']:.1f}", f"{100 * r['mmta']:.1f}",
+                 f"{r['frames_per_s']:.2f}"]
+        lines.append("| " + " | ".join(cells if one_seq else [str(r["sequence"]), *cells]) + " |")
+    if len(refs) == 1:
+        lines += ["", f"Reference: {refs[0]}"]
+    elif refs:
+        lines += ["", "References:", ""] + [f"{i}. {ref}" for i, ref in enumerate(refs, 1)]
     return "\n".join(lines) + "\n"
 
 
@@ -76,6 +87,12 @@ def load_comparison(folder: str | os.PathLike[str]) -> dict[str, Any]:
         missing = [k for k in _ROW_KEYS if not isinstance(row, dict) or k not in row]
         if missing:
             raise FormatError(f"rows[{i}] has no {', '.join(repr(k) for k in missing)}", path=path)
+        if row.get("d_max_over_runs_mm") is None:  # written before the key: the entry's own summary has it
+            entry = entry_folder(folder, row) / "summary.json"
+            try:
+                row["d_max_over_runs_mm"] = largest_run_maximum(read_json_object(entry)) if entry.is_file() else None
+            except FormatError:
+                row["d_max_over_runs_mm"] = None
     report.setdefault("lowest_fps", min((float(r["fps"]) for r in report["rows"]), default=0.0))
     return report
 
@@ -166,7 +183,7 @@ def comparison_figures(folder: str | os.PathLike[str], report: dict[str, Any] | 
                 D = np.stack([run.d_per_frame for run in res.runs])
                 mean = np.nanmean(D, axis=0) if np.isfinite(D).any(axis=0).all() else D.mean(axis=0)
                 top = max(top, float(np.nanmax(mean)) if np.isfinite(mean).any() else 0.0)
-                n_runs = "" if len(res.runs) == report["runs"] else f", {len(res.runs)} run(s)"
+                n_runs = "" if len(res.runs) == report["runs"] else f", {count(len(res.runs), 'run')}"
                 ax.plot(res.frame_times, mean, lw=1.8, color=colour[_entry_key(r)],
                         marker="." if len(mean) < 30 else None,
                         label=f"{r['label']}: {per_run[id(r)].mean():.1f} mm{n_runs}")
@@ -188,7 +205,7 @@ def comparison_figures(folder: str | os.PathLike[str], report: dict[str, Any] | 
                 ax.legend(loc="upper left", fontsize=7.5, framealpha=0.9)
         axes[i][0].set_ylim(0.0, top * 1.15)  # shared along the row: the rates are compared on one scale
     counts = {len(res.runs) for res in loaded.values()}
-    runs_said = (f"mean of {report['runs']} run(s) per entry" if counts == {report["runs"]}
+    runs_said = (f"mean of {count(report['runs'], 'run')} per entry" if counts == {report["runs"]}
                  else "mean of each entry's finished runs (the legend gives the counts that differ "
                       f"from {report['runs']})")
     fig.suptitle(f"{suite}: 3D error over time, {runs_said}{quick}", fontsize=11)

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from swarmpose.joints import JOINTS15
-from swarmpose.report._style import IK_RGB, SIDE_RGB, joint_side, rgb01
+from swarmpose.report._style import IK_RGB, SIDE_RGB, count, joint_side, rgb01
 from swarmpose.report.results import Results, as_results
 
 __all__ = ["error_over_time", "per_joint_errors", "default_report_dir"]
@@ -118,7 +118,8 @@ def error_over_time(
             sec.tick_params(labelsize=8)
     ax.grid(True, color="0.88", lw=0.6)
     ax.set_axisbelow(True)
-    ax.legend(loc="upper left", fontsize=8, framealpha=0.9, ncol=2 if len(res.runs) > 4 else 1)
+    # beside the axes, not on them: inside it covered the curves' early peaks
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=8, frameon=False)
     fig.tight_layout()
     return _save(fig, out_path, dpi)
 
@@ -133,7 +134,7 @@ def per_joint_errors(
     """Bar chart of the mean error of each of the 15 joints.
 
     For each joint: the mean over runs (bar, coloured by body side as in the overlays) with the
-    smallest and largest run as whiskers, and beside it the IK floor of that joint (grey, hatched),
+    smallest and largest of the runs' means of that joint as whiskers, and beside it the IK floor of that joint (grey, hatched),
     when ``ik.npz`` is there.
 
     Parameters
@@ -171,8 +172,8 @@ def per_joint_errors(
     ax.set_xticks(x)
     ax.set_xticklabels([n.replace("_", " ") for n in JOINTS15], rotation=40, ha="right", fontsize=9)
     ax.set_ylabel("mean 3D error (mm)")
-    spread = "; whiskers: best and worst run" if len(res.runs) > 1 else ""
-    ax.set_title(f"{_title_head(res)}: error per joint, mean over {len(res.runs)} run(s){spread}", fontsize=11)
+    spread = "; whiskers: range over the runs" if len(res.runs) > 1 else ""
+    ax.set_title(f"{_title_head(res)}: error per joint, mean over {count(len(res.runs), 'run')}{spread}", fontsize=11)
     ax.grid(True, axis="y", color="0.88", lw=0.6)
     ax.set_axisbelow(True)
     handles = [Patch(facecolor=rgb01(SIDE_RGB[s]), edgecolor="black", lw=0.5, label=lab)

@@ -302,10 +302,12 @@ def _recompute_summary(config: dict[str, Any], runs: list[RunData], ik_floor: fl
 
 def largest_run_maximum(summary: dict[str, Any]) -> float | None:
     """The largest D of any run: ``d_max_over_runs_mm``, or for a summary written before that key existed
-    the largest of its ``per_run`` D_max; None when it has neither."""
+    the largest of its ``per_run`` D_max (``d_max_mm``, or ``d_max`` in a `compare` entry's summary); None
+    when it has neither."""
     if summary.get("d_max_over_runs_mm") is not None:
         return float(summary["d_max_over_runs_mm"])
-    maxima = [r["d_max_mm"] for r in summary.get("per_run", []) if isinstance(r, dict) and "d_max_mm" in r]
+    maxima = [r.get("d_max_mm", r.get("d_max")) for r in summary.get("per_run", []) if isinstance(r, dict)]
+    maxima = [m for m in maxima if isinstance(m, (int, float))]
     return float(max(maxima)) if maxima else None
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 import shlex
 from collections.abc import Sequence
 from pathlib import Path
@@ -12,6 +13,7 @@ import numpy as np
 
 from swarmpose.joints import JOINTS15
 from swarmpose.metrics import MMTA_DELTA_MM, spread_over_runs, track_errors
+from swarmpose.report._style import count
 from swarmpose.report.results import Results, as_results, largest_run_maximum
 
 __all__ = ["write_summary", "run_rows"]
@@ -159,7 +161,7 @@ def write_summary(
         head += f" at {fps:g} fps"
     if evals:
         head += f", {evals} fitness evaluations per frame"
-    head += f", {len(res.runs)} run(s) over {T} frames"
+    head += f", {count(len(res.runs), 'run')} over {T} frames"
     if cfg.get("sequence"):
         head += f" of `{cfg['sequence']}`"
     L += [head + ".", ""]
@@ -249,9 +251,10 @@ def write_summary(
         mean = pj.get(name, float(per_run[:, j].mean()))
         jrows.append([name, _f(mean), _f(per_run[:, j].min()), _f(per_run[:, j].max()),
                       _f(None if ik_pj is None else ik_pj[j])])
-    L += ["## Error per joint", "", "Mean distance over the frames (mm): mean over the runs, best and worst run, "
-          "and the IK floor of the joint.", ""]
-    L += _table(["joint", "mean (mm)", "best run (mm)", "worst run (mm)", "IK floor (mm)"], jrows) + [""]
+    L += ["## Error per joint", "", "Mean distance over the frames (mm): mean over the runs, the smallest and the "
+          "largest of the runs' means (each joint's own; not necessarily the best and worst run above), and the IK "
+          "floor of the joint.", ""]
+    L += _table(["joint", "mean (mm)", "min over runs (mm)", "max over runs (mm)", "IK floor (mm)"], jrows) + [""]
     for f in figures:
         if not Path(f).name.startswith("error_over_time"):
             L += [f"![{Path(f).stem.replace('_', ' ')}]({_rel(Path(f), base)})", ""]
@@ -262,7 +265,7 @@ def write_summary(
               "The tracked cones on the camera views (left limbs blue, right limbs orange, torso and head "
               "green) and the ground-truth skeleton (yellow).", ""]
         for p in overlays:
-            L += [f"![{Path(p).stem}]({_rel(Path(p), base)})", ""]
+            L += [_overlay_caption(res, Path(p)), "", f"![{Path(p).stem}]({_rel(Path(p), base)})", ""]
         if video:
             L += [f"Video of every frame: [{Path(video).name}]({_rel(Path(video), base)})", ""]
 
@@ -273,3 +276,23 @@ def write_summary(
                                           [[str(k), f"`{v}`"] for k, v in versions.items()], "ll") + [""]
     out_path.write_text("\n".join(L).rstrip() + "\n", encoding="utf-8")
     return out_path
+
+
+def _overlay_caption(res: Results, path: Path) -> str:
+    """``Run 0, sequence frame 234 (t = 3.90 s): D = 158.4 mm, the run's worst frame.`` for an overlay PNG
+    named as :func:`swarmpose.report.overlay.overlays` names them; the file's name for any other."""
+    m = re.fullmatch(r"overlay_run(\d+)_frame(\d+)", path.stem)
+    if m is None:
+        return f"*{path.stem}*"
+    run, k = int(m.group(1)), int(m.group(2))
+    r = next((x for x in res.runs if x.run == run), None)
+    hit = np.zeros(0, dtype=np.int64) if r is None else np.flatnonzero(r.frame_indices == k)
+    if r is None or hit.size == 0:
+        return f"*Run {run}, sequence frame {k}.*"
+    i = int(hit[0])
+    d = r.d_per_frame[i]
+    t = f" (t = {float(r.frame_times[i]):.2f} s)"
+    if not np.isfinite(d):
+        return f"*Run {run}, sequence frame {k}{t}: no valid ground truth.*"
+    worst = ", the run's worst frame" if i == int(np.nanargmax(r.d_per_frame)) else ""
+    return f"*Run {run}, sequence frame {k}{t}: D = {float(d):.1f} mm{worst}.*"
