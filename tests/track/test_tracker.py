@@ -507,7 +507,12 @@ def test_a_suite_end_to_end_writes_its_comparison(short_sequence, tmp_path, monk
             assert z["frame_times"][-1] == pytest.approx(0.05)
     assert json.loads((out / "comparison.json").read_text()) == report
     table = (out / "comparison.md").read_text()
-    assert "first 2 frames at 20 fps (0.05 s" in table and all(f"| {label} |" in table for label in entries)
+    assert "first 2 frames at 20 fps (0.05 s" in table
+    # one row per entry, each numbered with its paper reference (the suite's entries cite different ones)
+    refs = list(dict.fromkeys(e.reference for e, _ in suite_configs("thesis-apf")))
+    for e, _ in suite_configs("thesis-apf"):
+        assert f"| {e.label} [{refs.index(e.reference) + 1}] |" in table
+    assert all(f"{i}. {ref}" in table for i, ref in enumerate(refs, 1))
     assert "](comparison_over_time.png)" in table and "](comparison_d_mean.png)" in table
     assert (out / "comparison.html").read_text().count("data:image/png;base64,") == 2
     again = CliRunner().invoke(app, [*args, "--resume"])
