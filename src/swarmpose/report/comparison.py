@@ -171,7 +171,9 @@ def comparison_figures(folder: str | os.PathLike[str], report: dict[str, Any] | 
     suite, quick = report["suite"], " (quick try: --max-frames)" if report.get("max_frames") else ""
 
     # -------------------------------------------------------------- error over time, one panel per clip x rate
-    fig = _figure((6.2 * len(rates), 3.6 * len(seqs) + 0.5), dpi)
+    most = max(sum(1 for r in rows if str(r["sequence"]) == s and float(r["fps"]) == f) for s in seqs for f in rates)
+    legend_rows = -(-(most + 1) // 2)  # the entries and the IK floor, two columns under each panel
+    fig = _figure((6.2 * len(rates), (3.1 + 0.17 * legend_rows) * len(seqs) + 0.5), dpi)
     axes = fig.subplots(len(seqs), len(rates), squeeze=False, sharey="row")  # one error scale per clip
     for i, seq in enumerate(seqs):
         top = 1.0
@@ -201,8 +203,8 @@ def comparison_figures(folder: str | os.PathLike[str], report: dict[str, Any] | 
                 ax.set_ylabel("3D error D (mm), mean of the runs")
             ax.grid(True, color="0.88", lw=0.6)
             ax.set_axisbelow(True)
-            if mine:
-                ax.legend(loc="upper left", fontsize=7.5, framealpha=0.9)
+            if mine:  # under the panel, not on it: with many entries an inner legend hides their curves
+                ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.2), fontsize=7.5, frameon=False, ncol=2)
         axes[i][0].set_ylim(0.0, top * 1.15)  # shared along the row: the rates are compared on one scale
     counts = {len(res.runs) for res in loaded.values()}
     runs_said = (f"mean of {count(report['runs'], 'run')} per entry" if counts == {report["runs"]}
