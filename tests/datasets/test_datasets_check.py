@@ -120,6 +120,7 @@ def test_human_readable_output(he1_copy, as_json):
     if not as_json:
         assert "problem" in res.stdout and "S1/Calibration_Data/C1.cal" in res.stdout
         assert "[red]1" in res.stdout  # file content is shown literally, not as markup
+        assert "(s)" not in res.stdout and res.stdout.rstrip().endswith(("1 problem", "problems"))
 
 
 def test_relative_paths(he1_clean, monkeypatch):

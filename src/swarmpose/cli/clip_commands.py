@@ -11,6 +11,7 @@ import typer
 from swarmpose.cli.app import app
 from swarmpose.cli.common import (
     console,
+    count,
     err_console,
     escape,
     fail_on_user_error,
@@ -76,7 +77,7 @@ def info(
         err_console.print(f"[bold yellow]warning:[/bold yellow] {escape(w)}", highlight=False)
 
     console.print(f"[bold]{escape(str(clip))}[/bold]")
-    console.print(f"  {_count(data['frames'], 'frame')} at {data['frame_rate']:g} fps = {data['duration_s']:.3f} s, "
+    console.print(f"  {count(data['frames'], 'frame')} at {data['frame_rate']:g} fps = {data['duration_s']:.3f} s, "
                   f"{data['joints']} joints / {data['channels']} channels, unit {data['unit']} "
                   f"({data['mm_per_unit']:.3f} mm per unit; the rest pose stands {height_mm:.0f} mm tall)")
     console.print(f"  pelvis travels {data['pelvis_path_m']:.2f} m; height "
@@ -85,11 +86,6 @@ def info(
     for name, d in data["joints15"].items():
         table.add_row(name, d["bvh_joint"], " ".join(f"{v:8.1f}" for v in d["start_mm"]))
     console.print(table)
-
-
-def _count(n: int, word: str) -> str:
-    """``1 frame``, ``2 frames``."""
-    return f"{n} {word}{'' if n == 1 else 's'}"
 
 
 def _height_check(c) -> tuple[float, list[str]]:
@@ -118,8 +114,8 @@ def _header_only(clip: Path, bvh, why: Exception, json_out: bool) -> None:
         print_json(data)
         return
     console.print(f"[bold]{escape(str(clip))}[/bold]")
-    console.print(f"  {_count(data['frames'], 'frame')} at {data['frame_rate']:g} fps = {data['duration_s']:.3f} s, "
-                  f"{_count(data['joints'], 'joint')} / {data['channels']} channels; root "
+    console.print(f"  {count(data['frames'], 'frame')} at {data['frame_rate']:g} fps = {data['duration_s']:.3f} s, "
+                  f"{count(data['joints'], 'joint')} / {data['channels']} channels; root "
                   f"{escape(bvh.joints[0].name)}")
     err_console.print(f"[bold yellow]warning:[/bold yellow] {escape(data['warnings'][0])} (swarmpose reads CMU-style "
                       "skeletons and files written by `swarmpose export`)", highlight=False)

@@ -17,13 +17,18 @@ from rich.markup import escape
 
 from swarmpose.errors import SwarmposeError
 
-__all__ = ["console", "err_console", "escape", "print_json", "fail_on_user_error", "to_jsonable"]
+__all__ = ["console", "err_console", "escape", "print_json", "fail_on_user_error", "to_jsonable", "count"]
 
 # soft_wrap: lines are not cut at 80 columns when stdout is a file or a pipe (tables still fit the width)
 console = Console(soft_wrap=True)
 err_console = Console(stderr=True, soft_wrap=True)
 
 F = TypeVar("F", bound=Callable[..., Any])
+
+
+def count(n: int, word: str) -> str:
+    """``1 frame``, ``2 frames``."""
+    return f"{n} {word}{'' if n == 1 else 's'}"
 
 
 def to_jsonable(obj: Any) -> Any:

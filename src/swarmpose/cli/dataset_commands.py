@@ -8,7 +8,7 @@ from typing import Annotated
 import typer
 
 from swarmpose.cli.app import app
-from swarmpose.cli.common import console, print_json
+from swarmpose.cli.common import console, count, print_json
 
 datasets_app = typer.Typer(
     help="Real datasets: check a HumanEva-I/II release, subject folder or Lee walk folder (see docs/datasets.md).",
@@ -39,8 +39,8 @@ def check(
         kinds = {"humaneva-release": "HumanEva release", "humaneva-subject": "HumanEva subject folder",
                  "leewalk": "Lee walk folder", "unknown": "unrecognised folder"}
         console.print(f"[bold]{kinds.get(report.kind, report.kind)}[/bold] {escape(report.path)}: "
-                      f"{len(report.cameras)} camera(s){''.join(' ' + c for c in report.cameras)}; "
-                      f"{len(report.sequences)} sequence(s)", highlight=False)
+                      f"{count(len(report.cameras), 'camera')}{''.join(' ' + c for c in report.cameras)}; "
+                      f"{count(len(report.sequences), 'sequence')}", highlight=False)
         for p in report.problems:
             console.print(f"  [red]problem[/red] {escape(p)}", highlight=False)
         for n in report.notes:
@@ -48,6 +48,6 @@ def check(
         if report.ok:
             console.print("[green]ok[/green]: no problems found")
         else:
-            console.print(f"[red]{len(report.problems)} problem(s)[/red]")
+            console.print(f"[red]{count(len(report.problems), 'problem')}[/red]")
     if not report.ok:
         raise typer.Exit(code=1)

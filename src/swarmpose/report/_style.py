@@ -1,4 +1,5 @@
-"""Colours shared by the plots and the overlays (Okabe-Ito palette: readable with colour blindness)."""
+"""Colours shared by the plots and the overlays (Okabe-Ito palette: readable with colour blindness), and the
+wording of counts in their titles."""
 
 from __future__ import annotations
 
