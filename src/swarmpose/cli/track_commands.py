@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 import typer
 
 from swarmpose.cli.app import app
-from swarmpose.cli.common import console, err_console, escape, fail_on_user_error, print_json
+from swarmpose.cli.common import console, count, err_console, escape, fail_on_user_error, print_json
 
 if TYPE_CHECKING:
     from swarmpose.track.tracker import TrackConfig
@@ -141,7 +141,7 @@ def track(
         print_json(summary)
         return
     name = seq.name if isinstance(seq, Path) else str(seq)
-    console.print(f"[bold]{algo}[/bold] on {escape(name)} at {fps:g} fps, {runs} run(s), "
+    console.print(f"[bold]{algo}[/bold] on {escape(name)} at {fps:g} fps, {count(runs, 'run')}, "
                   f"{summary['evals_per_frame']} evaluations per frame ({summary['fitness']} fitness)")
     over = []
     if runs > 1:
