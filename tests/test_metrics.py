@@ -37,6 +37,8 @@ def test_known_distances_give_the_papers_measures():
     assert e.sigma == pytest.approx(np.mean([0.0, np.std(dist[1]), 0.0]))
     assert e.per_joint[JOINTS15[0]] == pytest.approx(np.mean([10.0, 50.0, 200.0]))
     assert e.per_joint[JOINTS15[-1]] == pytest.approx(np.mean([10.0, 150.0, 200.0]))
+    assert e.d_std == pytest.approx(np.std([10.0, 350.0 / 3, 200.0]))  # population SD over the frames
+    assert track_errors(_displaced(gt[:1], dist[:1], rng), gt[:1]).d_std == 0.0  # one frame: no spread, not NaN
 
 
 def test_frames_without_ground_truth_are_not_scored():
@@ -84,6 +86,24 @@ def test_aggregate_over_runs():
     assert aggregate_runs(runs[:1])["d_mean_std_over_runs"] == 0.0
     with pytest.raises(ValueError, match="no runs"):
         aggregate_runs([])
+
+
+def test_the_worst_run_is_the_highest_d_mean_and_joints_are_averaged_over_runs():
+    """Run A is worse on average, run B has the single largest error: the worst run is A (the papers rank
+    by D_mean); per-joint errors are the mean of the runs' own per-joint errors."""
+    rng = np.random.default_rng(3)
+    gt = rng.normal(0, 300, (6, 15, 3))
+    a = np.full((6, 15), 80.0)  # D_mean 80, D_max 80
+    b = np.full((6, 15), 20.0)
+    b[3] = 300.0  # D_mean 63.3, D_max 300
+    c = np.tile(np.linspace(5.0, 145.0, 15), (6, 1))  # per joint 5..145 mm, D_mean 75
+    runs = [track_errors(_displaced(gt, d, rng), gt) for d in (b, a, c)]
+    agg = aggregate_runs(runs)
+    assert agg["worst"]["run"] == 1 and agg["worst"]["d_mean"] == pytest.approx(80.0)
+    assert agg["d_max_over_runs"] == pytest.approx(300.0)
+    for j, name in enumerate(JOINTS15):
+        expected = np.mean([(20.0 * 5 + 300.0) / 6, 80.0, c[0, j]])
+        assert agg["per_joint"][name] == pytest.approx(expected)
 
 
 @settings(max_examples=40, deadline=None)

@@ -47,6 +47,20 @@ def test_aapso_global_and_hard_variants(model):
     torso = base.stages[0].active
     assert not any((s.active & torso).any() for s in hard.stages[1:])
     assert all((s.active & torso).any() for s in base.stages[1:])  # soft: torso searched at sigma/10
+    for stage in hard.stages:  # what a stage searches is its effective scale: nothing outside its partition
+        assert np.all(stage.effective_scale[~stage.active] == 0.0) and np.all(stage.effective_scale[stage.active] > 0)
+    # end to end: once stage 1 is done, hard partitions never move the torso again
+    x0 = np.clip(np.zeros(model.n_params), hard.lower, hard.upper)  # inside the bounds: nothing is clipped
+    opt = hard.start(x0, np.random.default_rng(0))
+    asked = []
+    while not opt.done:
+        x = opt.ask()
+        asked.append(x)
+        opt.tell(-np.sum((x - 0.1) ** 2, axis=1))
+    later = np.vstack(asked)[hard.stages[0].evaluations:]
+    assert len(later) == hard.evals_per_frame - hard.stages[0].evaluations
+    # (eq. 18's variance of a parameter all particles share is 0 up to rounding: moves of ~1e-16 rad remain)
+    assert np.ptp(later[:, torso], axis=0).max() < 1e-9 and np.ptp(later[:, ~torso], axis=0).min() > 1e-3
 
 
 def test_sppso_global_variant_scores_the_whole_body(model):

@@ -196,6 +196,12 @@ def test_silhouette_score_is_eq_5_5():
     w = deutscher_reid_log_weight(np.array([[1.0, 0.0]]), np.array([[4.0, 0.0]]), np.array([[2.0, 0.0]]),
                               np.array([[8.0, 2.0]]))
     np.testing.assert_allclose(w, -(0.25 + 1.0 + 0.25 + 0.0))
+    # a view where no interior point is drawn (the body outside it) has no region evidence: it costs the
+    # largest SSD, 1, like a view without edge samples; it must not score as a perfect match
+    none = np.zeros((1, 1))
+    np.testing.assert_allclose(deutscher_reid_log_weight(none, np.ones((1, 1)), none, none), [-1.0])
+    # the observed-coverage weight a of eq. 5.5 (0.5 in the thesis) weighs Y / O, and 1 - a weighs Y / P
+    np.testing.assert_allclose(silhouette_score([[2]], [[4]], [8], a=0.2), [[0.8 * 2 / 4 + 0.2 * 2 / 8]])
 
 
 # --------------------------------------------------------------------------- on a synthesised walk

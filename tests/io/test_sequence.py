@@ -226,6 +226,30 @@ def test_wrong_array_shape_is_named(written):
         open_sequence(path)
 
 
+def test_marker_ids_outside_the_names_are_named(written):
+    """ids index the marker names (or -1 for a false detection): an id equal to the number of names is one
+    past the end and refused."""
+    _, path = written
+    with np.load(path / "markers.npz", allow_pickle=False) as z:
+        arrays = {k: z[k] for k in z.files}
+    assert arrays["ids"].size > 0
+    arrays["ids"] = arrays["ids"].copy()
+    arrays["ids"][0] = 2  # 2 names: valid ids are -1, 0 and 1
+    np.savez_compressed(path / "markers.npz", **arrays)
+    with pytest.raises(FormatError, match=r"markers\.npz.*ids must be in \[-1, 2\), got -?\d+\.\.2"):
+        open_sequence(path)
+
+
+def test_a_camera_of_another_image_size_is_named(written):
+    _, path = written
+    rig = json.loads((path / "cameras.json").read_text())
+    cams = rig["cameras"] if isinstance(rig, dict) else rig
+    cams[1]["width"] = W * 2
+    (path / "cameras.json").write_text(json.dumps(rig))
+    with pytest.raises(FormatError, match=rf"cameras\.json.*camera 'V1' is {2 * W}x{H}, the sequence {W}x{H}"):
+        open_sequence(path)
+
+
 def test_invalid_json(written):
     _, path = written
     (path / "sequence.json").write_text('{"format": "swarmpose-sequence",\n "version": }')

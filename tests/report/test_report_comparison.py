@@ -194,3 +194,17 @@ def test_the_largest_d_of_an_entry_written_before_the_key_comes_from_its_own_sum
     for row in rows:
         row["d_max_over_runs_mm"] = None
     assert "(largest)" not in comparison_table({**report, "rows": rows})
+
+
+def test_every_cell_of_a_row_is_its_entry_s_number(comparison: Path):
+    """Each row: label, evaluations, D_mean ± SD, the worst run's D_mean (not the mean), mean D_max with the
+    largest, IK floor, MMTA in per cent, frames/s."""
+    report = load_comparison(comparison)
+    table = comparison_table(report)
+    for r in report["rows"]:
+        assert r["worst_d_mean_mm"] > r["d_mean_mm"] and 0.0 < r["mmta"] < 1.0  # cells that can be told apart
+        largest = f" ({r['d_max_over_runs_mm']:.1f})" if r.get("d_max_over_runs_mm") is not None else ""
+        line = (f"| {r['label']} | {r['evals_per_frame']} | {r['d_mean_mm']:.1f} ± {r['d_mean_std_over_runs_mm']:.1f} | "
+                f"{r['worst_d_mean_mm']:.1f} | {r['d_max_mm']:.1f}{largest} | {r['ik_floor_mm']:.1f} | "
+                f"{100 * r['mmta']:.1f} | {r['frames_per_s']:.2f} |")
+        assert line in table

@@ -11,6 +11,7 @@ import pytest
 
 from swarmpose.errors import DataError
 from swarmpose.joints import JOINTS15
+from swarmpose.metrics import track_errors
 from swarmpose.report import load_results, make_report, write_summary
 
 
@@ -91,10 +92,15 @@ def test_summary_has_the_numbers(results_copy: Path):
     mean_row = (f"| **mean** | {s['d_mean_mm']:.1f} | {s['d_max_mm']:.1f} | {100 * s['mmta']:.1f} | "
                 f"{s['mmtp_mm']:.1f} | {s['frames_per_s']:.2f} |")
     assert mean_row in md
+    mmtp = {run.run: track_errors(run.joints, run.gt_joints).mmtp for run in load_results(results_copy).runs}
     for r in s["per_run"]:
-        assert f"| {r['run']} | {r['d_mean_mm']:.1f} | {r['d_max_mm']:.1f} | {100 * r['mmta']:.1f} |" in md
+        assert (f"| {r['run']} | {r['d_mean_mm']:.1f} | {r['d_max_mm']:.1f} | {100 * r['mmta']:.1f} | "
+                f"{mmtp[r['run']]:.1f} | {r['frames_per_s']:.2f} |") in md
     w = s["worst"]
-    assert f"| **worst** (run {w['run']}) | {w['d_mean_mm']:.1f} | {w['d_max_mm']:.1f} |" in md
+    wr = next(r for r in s["per_run"] if r["run"] == w["run"])
+    assert w["run"] != 0 and f"{mmtp[w['run']]:.1f}" != f"{mmtp[0]:.1f}"  # the worst row is not run 0's
+    assert (f"| **worst** (run {w['run']}) | {w['d_mean_mm']:.1f} | {w['d_max_mm']:.1f} | {100 * w['mmta']:.1f} | "
+            f"{mmtp[w['run']]:.1f} | {wr['frames_per_s']:.2f} |") in md
     assert f"| IK floor | {s['ik_floor_mm']:.1f} |" in md
     for name in JOINTS15:
         assert f"| {name} | {s['per_joint_mm'][name]:.1f} |" in md

@@ -580,3 +580,30 @@ def test_track_flags_reach_the_tracker(short_sequence, tmp_path):
     assert zero_cfg["motion"] == "zero-velocity" and cv_cfg["motion"] == "constant-velocity:0.5"
     np.testing.assert_array_equal(cv[:2], zero[:2])
     assert not np.array_equal(cv[2], zero[2])
+
+
+def test_run_k_of_seed_s_draws_from_seed_sequence_s_k(short_sequence, tmp_path):
+    """Run k of seed S is its own stream, SeedSequence([S, k]): run 0 of seed 1 is not run 1 of seed 0
+    (as it would be with a seed of S + k), and it is what config.json records."""
+    from swarmpose.track.tracker import run_seed
+
+    assert np.array_equal(run_seed(3, 2).generate_state(4), np.random.SeedSequence([3, 2]).generate_state(4))
+    assert not np.array_equal(run_seed(1, 0).generate_state(4), run_seed(0, 1).generate_state(4))
+    s0 = prepare_track(short_sequence, TrackConfig(algo="sppso", fps=20.0, seed=0), tmp_path / "s0")
+    s1 = prepare_track(short_sequence, TrackConfig(algo="sppso", fps=20.0, seed=1), tmp_path / "s1")
+    a = run_tracker(s0, 1, tmp_path / "s0")
+    b = run_tracker(s1, 0, tmp_path / "s1")
+    assert not np.array_equal(a.params, b.params)
+
+
+def test_the_tracker_searches_with_sigma_scaled_to_its_own_rate():
+    """Thesis sec. 6.2: sigma x 60 / fps. The optimiser a TrackConfig builds is the registry's at the
+    config's rate (at 20 fps three times the 60-fps sigma), not one at a fixed rate."""
+    from swarmpose import optim
+    from swarmpose.body.model import load_model
+
+    model = load_model("balan31")
+    at20, at60 = (TrackConfig(algo="sppso", fps=f).optimizer(model) for f in (20.0, 60.0))
+    np.testing.assert_allclose(at20.sigma, 3.0 * at60.sigma)
+    np.testing.assert_allclose(at20.sigma, optim.get("sppso", model=model, fps=20.0).sigma)
+    assert at20.fps == 20.0
