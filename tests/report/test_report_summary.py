@@ -112,6 +112,23 @@ def test_summary_has_the_numbers(results_copy: Path):
     assert "swarmpose track " in md and "--seed 3" in md
 
 
+def test_the_ik_floor_row_has_its_maximum_and_mmta(results_copy: Path):
+    """The IK floor row: its largest frame error and the share of its joints within 100 mm (MMTA), from
+    ik.npz's per-joint errors; errors on both sides of 100 and 200 mm tell the threshold apart."""
+    with np.load(results_copy / "ik.npz", allow_pickle=False) as z:
+        arrays = {k: z[k] for k in z.files}
+    T = arrays["joint_error_mm"].shape[0]
+    err = np.full((T, 15), 20.0)
+    err[:, :3] = 150.0  # 3 of 15 joints beyond 100 mm (within 200)
+    err[1, 3:6] = 250.0  # frame 1: 3 more, beyond 200 mm too
+    arrays["joint_error_mm"] = err
+    np.savez(results_copy / "ik.npz", **arrays)
+    md = write_summary(results_copy).read_text()
+    row = next(line for line in md.splitlines() if line.startswith("| IK floor |"))
+    mmta = 100 * np.mean(err < 100.0)
+    assert row.split(" | ")[2:4] == [f"{err.mean(axis=1).max():.1f}", f"{mmta:.1f}"], row
+
+
 def test_report_without_sequence_skips_overlays(results_copy: Path, tmp_path: Path):
     cfg = json.loads((results_copy / "config.json").read_text())
     cfg["sequence"] = str(tmp_path / "moved")
