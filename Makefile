@@ -37,3 +37,4 @@ lint: $(STAMP)
 
 clean:
 	rm -rf $(VENV) build *.egg-info src/*.egg-info
+	find src -name '*.nbi' -delete -o -name '*.nbc' -delete  # numba's compiled kernels

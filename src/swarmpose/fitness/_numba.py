@@ -31,6 +31,11 @@ from swarmpose.render._kernels import (
     silhouette_counts,
 )
 
+#: Hash of the kernel sources this module's cached kernels inline (body/kinematics.py, render/_kernels.py).
+#: numba's cache sees edits to this file only, so an edit there must change this line (or cached kernels keep
+#: running the old code); tests/test_numba_cache.py says when and gives the new value.
+INLINED_SOURCES_SHA1 = "b86a88ab5d1b7af0"
+
 __all__ = ["eval_kernel", "eval_share", "row_prefix_sums"]
 
 
