@@ -607,3 +607,27 @@ def test_the_tracker_searches_with_sigma_scaled_to_its_own_rate():
     np.testing.assert_allclose(at20.sigma, 3.0 * at60.sigma)
     np.testing.assert_allclose(at20.sigma, optim.get("sppso", model=model, fps=20.0).sigma)
     assert at20.fps == 20.0
+
+
+def test_a_resume_refuses_ground_truth_edited_since(short_sequence, tmp_path):
+    """sequence.json's identity does not see data files edited in place: config.json also records a hash of
+    the tracked frames' ground truth, and a resume against other ground truth is refused (it would re-score
+    the finished runs against it, from an IK start fitted to the old one)."""
+    import shutil
+
+    from swarmpose.errors import ConfigError
+
+    seq = tmp_path / "seq"
+    shutil.copytree(short_sequence, seq)
+    cfg = TrackConfig(algo="sppso", fps=20.0, max_frames=2)
+    track_runs(seq, cfg, 1, tmp_path / "out", workers=1, progress=False)
+    assert len(json.loads((tmp_path / "out" / "config.json").read_text())["ground_truth_sha1"]) == 16
+    track_runs(seq, cfg, 2, tmp_path / "out", resume=True, workers=1, progress=False)  # unchanged: resumes
+    with np.load(seq / "ground_truth.npz", allow_pickle=False) as z:
+        arrays = {k: z[k] for k in z.files}
+    arrays["joints"] = arrays["joints"] + np.array([300.0, 0.0, 0.0])
+    np.savez_compressed(seq / "ground_truth.npz", **arrays)
+    before = (tmp_path / "out" / "config.json").read_text()
+    with pytest.raises(ConfigError, match="ground truth .* not the one the finished runs were scored against"):
+        track_runs(seq, cfg, 3, tmp_path / "out", resume=True, workers=1, progress=False)
+    assert (tmp_path / "out" / "config.json").read_text() == before  # refused before anything is written

@@ -30,6 +30,7 @@ from swarmpose.io.lock import folder_lock, remove_unused_folder
 from swarmpose.metrics import TrackErrors, aggregate_runs
 from swarmpose.track.tracker import (
     TrackConfig,
+    ground_truth_identity,
     model_identity,
     prepare_track,
     run_tracker,
@@ -38,7 +39,7 @@ from swarmpose.track.tracker import (
     write_config,
 )
 
-__all__ = ["Job", "check_results_folder", "close_client", "connect_scheduler", "errors_from_summary",
+__all__ = ["Job", "check_ground_truth", "check_results_folder", "close_client", "connect_scheduler", "errors_from_summary",
            "resolve_sequence", "run_job", "run_jobs", "track_runs"]
 
 
@@ -386,6 +387,19 @@ def check_results_folder(out_dir: Path, sequence: str | Path, config: TrackConfi
                           "or more)")
 
 
+def check_ground_truth(out_dir: Path, setup: Any, resume: bool) -> None:
+    """On a resume, refuse a sequence whose ground truth at the tracked frames is not the one the folder's
+    runs were scored against (``config.json``'s ``ground_truth_sha1``; folders written before it pass)."""
+    cfg_file = out_dir / "config.json"
+    if not resume or not cfg_file.is_file():
+        return
+    then = read_json_object(cfg_file).get("ground_truth_sha1")
+    if then is not None and then != ground_truth_identity(setup.gt_joints):
+        raise ConfigError(f"{cfg_file}: the ground truth of {sequence_location(setup.sequence_path)} at the tracked "
+                          "frames is not the one the finished runs were scored against (edited since?); track "
+                          "into another --out")
+
+
 def _intervals(frame_times: np.ndarray) -> dict[str, float | None]:
     """Mean, shortest and longest time between tracked frames: a rate that does not divide the
     sequence's (25 fps from 60) picks the nearest frames, so the spacing alternates (33 / 50 ms)."""
@@ -406,6 +420,7 @@ def track_runs(sequence: str | Path, config: TrackConfig, runs: int, out_dir: Pa
             if isinstance(scheduler, str):
                 scheduler = connect_scheduler(scheduler)  # before the IK fit: a wrong address fails at once
             setup = prepare_track(sequence, config, out_dir)  # fits and caches the IK floor once
+            check_ground_truth(out_dir, setup, resume)
             write_config(out_dir, setup, runs, resume)
         except BaseException:
             close_client(scheduler)

@@ -47,7 +47,7 @@ from swarmpose.metrics import track_errors, valid_frames
 from swarmpose.track.motion import parse_motion
 
 __all__ = ["TrackConfig", "RunResult", "prepare_track", "run_tracker", "TrackSetup", "versions", "model_identity",
-           "sequence_identity", "sequence_location"]
+           "sequence_identity", "sequence_location", "ground_truth_identity"]
 
 IMAGE_FITNESS = ("silhouette_edge", "deutscher_reid")
 MARKER_FITNESS = ("markers", "reprojection")
@@ -248,6 +248,13 @@ def sequence_identity(sequence_path: str | Path) -> str:
             node.pop(path[-1], None)
     canonical = json.dumps(data, sort_keys=True, separators=(",", ":"))
     return "sequence.json sha1 " + hashlib.sha1(canonical.encode()).hexdigest()[:16]
+
+
+def ground_truth_identity(gt_joints: np.ndarray) -> str:
+    """A hash of the tracked frames' ground-truth joints: a resume checks that the data the finished runs
+    were scored against (and started from, by IK) are still the sequence's. ``sequence_identity`` covers
+    the synthesis record, not data files edited in place."""
+    return hashlib.sha1(np.ascontiguousarray(gt_joints, dtype=np.float64).tobytes()).hexdigest()[:16]
 
 
 def model_identity(model: str) -> str:
@@ -570,6 +577,7 @@ def config_record(setup: TrackSetup, runs: int) -> dict[str, Any]:
         "run_seeds": {str(k): [setup.config.seed, k] for k in range(runs)},
         "sequence": sequence_location(setup.sequence_path),
         "sequence_identity": sequence_identity(setup.sequence_path),
+        "ground_truth_sha1": ground_truth_identity(setup.gt_joints),
         "model_spec_sha1": model_identity(setup.config.model),
         "frames": int(len(setup.frame_indices)),
         "evals_per_frame": setup.evals_per_frame,
