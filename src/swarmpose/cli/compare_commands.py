@@ -9,20 +9,14 @@ import typer
 from swarmpose.cli.app import app
 from swarmpose.cli.common import console, fail_on_user_error, print_json
 from swarmpose.cli.demo import DEFAULT_CLIP
+from swarmpose.cli.track_commands import run_setting_parts
 
 
 def default_comparison_name(suite: str, *, seed: int, downsample: int, max_frames: int | None) -> str:
     """``<suite>`` and, as `track`'s default folder, each setting that changes the results and is not the
     default (``-<N>frames``, ``-s<seed>``, ``-ds<N>``): another seed or a quick try at a lower resolution
     gets its own folder instead of being refused as a resume with other settings."""
-    parts = [suite]
-    if max_frames is not None:
-        parts.append(f"{max_frames}frames")
-    if seed:
-        parts.append(f"s{seed}")
-    if downsample != 1:
-        parts.append(f"ds{downsample}")
-    return "-".join(parts)
+    return "-".join([suite, *run_setting_parts(max_frames=max_frames, seed=seed, downsample=downsample)])
 
 
 @app.command()

@@ -14,18 +14,20 @@ if TYPE_CHECKING:
     from swarmpose.track.tracker import TrackConfig
 
 
+def run_setting_parts(*, max_frames: int | None, seed: int, downsample: int) -> list[str]:
+    """The default folder names' parts for the frame count, seed and downsampling, each when it is not the
+    default (``30frames``, ``s1``, ``ds2``); `track`'s and `compare`'s folders share them."""
+    return ([f"{max_frames}frames"] if max_frames is not None else []) + ([f"s{seed}"] if seed else []) + \
+        ([f"ds{downsample}"] if downsample != 1 else [])
+
+
 def default_results_name(name: str, cfg: TrackConfig) -> str:
     """``<sequence>-<algo>-<fps>fps`` and every setting that changes the results and is not the default
     (``-30frames-s1-ds2-markers-hard``...), so that another seed or setting is not taken for a run to resume."""
     from swarmpose.experiments.run import folder_slug
 
-    parts = [name, cfg.algo, f"{cfg.fps:g}fps"]
-    if cfg.max_frames is not None:
-        parts.append(f"{cfg.max_frames}frames")
-    if cfg.seed:
-        parts.append(f"s{cfg.seed}")
-    if cfg.downsample != 1:
-        parts.append(f"ds{cfg.downsample}")
+    parts = [name, cfg.algo, f"{cfg.fps:g}fps",
+             *run_setting_parts(max_frames=cfg.max_frames, seed=cfg.seed, downsample=cfg.downsample)]
     if cfg.model != "balan31":
         parts.append(folder_slug(Path(cfg.model).stem))
     for value, default in ((cfg.fitness, "auto"), (cfg.optim_variant, ""), (cfg.fitness_options, ""),

@@ -142,14 +142,17 @@ def make_report(
     """
     res = results_dir if isinstance(results_dir, Results) else load_results(results_dir)
     res.run(run)  # no such finished run: an error before any file of an earlier report is touched
-    if sequence is not None and (overlay_frames > 0 or video):
-        res.sequence_path(sequence)  # a wrong folder the user named is an error, before anything is drawn
-    if video:
+    images_missing: DataError | None = None  # why overlays cannot be drawn, found before anything is written
+    if overlay_frames > 0 or video:
+        if sequence is not None:
+            res.sequence_path(sequence)  # a wrong folder the user named is an error, before anything is drawn
         try:
             res.sequence_path(sequence)
             _ = res.model
-        except DataError as exc:  # a report that exits 0 without the video asked for would pass for done
-            raise DataError(f"no video without the tracked sequence's images: {exc}") from exc
+        except DataError as exc:
+            if video:  # a report that exits 0 without the video asked for would pass for done
+                raise DataError(f"no video without the tracked sequence's images: {exc}") from exc
+            images_missing = exc
     out = Path(out_dir) if out_dir is not None else res.path / "report"
     out.mkdir(parents=True, exist_ok=True)
     figures = [error_over_time(res, out=out / "error_over_time.png"),
@@ -161,24 +164,19 @@ def make_report(
     # none) that summary.md shows; they are redrawn from the results whenever wanted
     for old in (out / "overlays").glob("overlay_run*_frame*.png"):
         old.unlink()
-    if overlay_frames > 0 or video:
-        try:
-            res.sequence_path(sequence)
-            _ = res.model
-        except DataError as exc:
-            notes.append(f"overlays skipped: {exc}")
-        else:
-            if overlay_frames > 0:
-                over = overlays(res, overlay_frames, run=run, out_dir=out / "overlays", sequence=sequence,
-                                crop=crop)
-            if video:
-                vid = overlay_video(res, out / f"overlay_run{run:03d}.{video_format}", run=run,
-                                    fmt=video_format, scale=video_scale, sequence=sequence, crop=crop)
-                # an earlier report's video of another run or format would pass for this one's; a report
-                # without --video keeps it (it took minutes to make)
-                for old in [*out.glob("overlay_run*.gif"), *out.glob("overlay_run*.mp4")]:
-                    if old.resolve() != vid.resolve():
-                        old.unlink()
+    if images_missing is not None:
+        notes.append(f"overlays skipped: {images_missing}")
+    elif overlay_frames > 0 or video:
+        if overlay_frames > 0:
+            over = overlays(res, overlay_frames, run=run, out_dir=out / "overlays", sequence=sequence, crop=crop)
+        if video:
+            vid = overlay_video(res, out / f"overlay_run{run:03d}.{video_format}", run=run,
+                                fmt=video_format, scale=video_scale, sequence=sequence, crop=crop)
+            # an earlier report's video of another run or format would pass for this one's; a report
+            # without --video keeps it (it took minutes to make)
+            for old in [*out.glob("overlay_run*.gif"), *out.glob("overlay_run*.mp4")]:
+                if old.resolve() != vid.resolve():
+                    old.unlink()
     summary = write_summary(res, out=out / "summary.md", figures=figures, overlays=over, video=vid, notes=notes)
     page = write_html(summary)
     return ReportPaths(summary=summary, html=page, figures=figures, overlays=over, video=vid, notes=notes)
