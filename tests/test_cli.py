@@ -22,6 +22,16 @@ def test_ik_reports_the_file_it_wrote(mocap_dir: Path, tmp_path: Path):
     out = CliRunner().invoke(app, ["ik", str(clip), "--out", str(tmp_path / "fit"), "--json"])
     assert out.exit_code == 0, out.output
     assert json.loads(out.stdout)["out"] == str(tmp_path / "fit.npz") and (tmp_path / "fit.npz").is_file()
+    written = (tmp_path / "fit.npz").stat().st_mtime_ns
+    again = CliRunner().invoke(app, ["ik", str(clip), "--out", str(tmp_path / "fit"), "--json"])
+    assert again.exit_code == 2 and "fit.npz and" in json.loads(again.stdout)["error"]  # names both files
+    assert "--force" in json.loads(again.stdout)["error"] and (tmp_path / "fit.npz").stat().st_mtime_ns == written
+    (tmp_path / "fit.npz").unlink()  # the .subject.json alone is refused too
+    again = CliRunner().invoke(app, ["ik", str(clip), "--out", str(tmp_path / "fit.npz"), "--json"])
+    assert again.exit_code == 2 and "fit.subject.json exists" in json.loads(again.stdout)["error"]
+    forced = CliRunner().invoke(app, ["ik", str(clip), "--out", str(tmp_path / "fit.npz"), "--force", "--json"])
+    assert forced.exit_code == 0, forced.output
+    assert (tmp_path / "fit.npz").is_file()
     bad = CliRunner().invoke(app, ["ik", str(clip), "--out", str(tmp_path)])
     assert bad.exit_code == 2 and "is a folder" in " ".join(bad.output.split())
     bad = CliRunner().invoke(app, ["ik", str(clip), "--out", str(tmp_path / "new") + "/"])  # a folder meant

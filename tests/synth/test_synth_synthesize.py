@@ -127,8 +127,11 @@ def test_cli_synth_json_and_show(walk_clip_path, short_walk: SynthReport, tmp_pa
     assert sheet.shape[1] == 3 * 644 and sheet.shape[0] > 4 * 484
     res = runner.invoke(app, ["show", str(short_walk.path), "--frame", "99"])
     assert res.exit_code == 2 and "outside" in res.stderr
+    res = runner.invoke(app, ["show", str(short_walk.path), "--frame", "2", "--out", str(png), "--json"])
+    assert res.exit_code == 2 and "exists; add --force" in json.loads(res.stdout)["error"]  # not clobbered
+    assert cv2.imread(str(png)).shape[:2] == sheet.shape[:2]
     res = runner.invoke(app, ["show", str(short_walk.path), "--frame", "2", "--out", str(png), "--scale", "0.5",
-                              "--json"])
+                              "--force", "--json"])
     assert res.exit_code == 0, res.output
     data = json.loads(res.stdout)
     assert data["path"] == str(png) and data["frame"] == 2

@@ -631,3 +631,55 @@ def test_a_resume_refuses_ground_truth_edited_since(short_sequence, tmp_path):
     with pytest.raises(ConfigError, match="ground truth .* not the one the finished runs were scored against"):
         track_runs(seq, cfg, 3, tmp_path / "out", resume=True, workers=1, progress=False)
     assert (tmp_path / "out" / "config.json").read_text() == before  # refused before anything is written
+
+
+def _rewrite_archive(path, change=None):
+    """Write the zip at ``path`` again, one minute later, with ``change(name, data)`` applied to its entries."""
+    import zipfile
+
+    with zipfile.ZipFile(path) as z:
+        entries = [(info, z.read(info.filename)) for info in z.infolist()]
+    with zipfile.ZipFile(path, "w") as z:
+        for info, data in entries:
+            stamped = zipfile.ZipInfo(info.filename, date_time=(*info.date_time[:4], (info.date_time[4] + 1) % 60, 0))
+            stamped.compress_type = info.compress_type
+            z.writestr(stamped, change(info.filename, data) if change else data)
+
+
+def test_a_resume_refuses_images_edited_since_but_not_a_rewritten_archive(short_sequence, tmp_path):
+    """config.json records a hash per observation file (view archives by their entries' CRCs): a resume after
+    an image was edited in place is refused naming the archive, while the same images written again (a
+    re-synthesis: new timestamps in the zip, so other bytes) resume."""
+    import shutil
+
+    import cv2
+
+    from swarmpose.errors import ConfigError
+
+    seq = tmp_path / "seq"
+    shutil.copytree(short_sequence, seq)
+    cfg = TrackConfig(algo="sppso", fps=20.0, max_frames=2)
+    track_runs(seq, cfg, 1, tmp_path / "out", workers=1, progress=False)
+    recorded = json.loads((tmp_path / "out" / "config.json").read_text())["observations_sha1"]
+    views = sorted(p.relative_to(seq).as_posix() for p in (seq / "views").glob("*.zip"))
+    assert set(views) <= set(recorded) and {"cameras.json", "markers.npz"} <= set(recorded)
+    assert "ground_truth.npz" not in recorded  # ground_truth_sha1 covers it, by the tracked frames
+
+    archive = seq / views[1]
+    before_bytes = archive.read_bytes()
+    _rewrite_archive(archive)
+    assert archive.read_bytes() != before_bytes
+    track_runs(seq, cfg, 2, tmp_path / "out", resume=True, workers=1, progress=False)  # same images: resumes
+
+    def brighten_first_image(name, data):
+        if name != "image/000000.png":
+            return data
+        img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
+        img[:10, :10] = 255 - img[:10, :10]
+        return cv2.imencode(".png", img)[1].tobytes()
+
+    _rewrite_archive(archive, brighten_first_image)
+    before = (tmp_path / "out" / "config.json").read_text()
+    with pytest.raises(ConfigError, match=rf"{views[1]} of .* changed since the finished runs were tracked"):
+        track_runs(seq, cfg, 3, tmp_path / "out", resume=True, workers=1, progress=False)
+    assert (tmp_path / "out" / "config.json").read_text() == before  # refused before anything is written

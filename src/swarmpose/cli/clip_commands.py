@@ -129,6 +129,7 @@ def ik(
     fps: float = typer.Option(60.0, help="Frame rate to resample the clip to before fitting."),
     out: str = typer.Option(None, help="Write the fitted parameters, joints and errors here (.npz)."),
     unit: str = typer.Option(None, help="Source unit (mm, cm, m, inch, cmu = 56.444 mm) or mm per unit; inferred if omitted."),
+    force: bool = typer.Option(False, "--force", help="Overwrite the --out file (and its .subject.json) when it exists."),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object instead of a summary."),
 ) -> None:
     """Fit the body model to the clip's 15 ground-truth joints frame by frame: the IK floor.
@@ -143,14 +144,21 @@ def ik(
     from swarmpose.body.priors import HardPriors
     from swarmpose.body.spec import load_spec
     from swarmpose.body.subject import subject_from_clip
+    from swarmpose.errors import ConfigError
     from swarmpose.io.mocap import load_clip
     from swarmpose.joints import JOINTS15
 
     if out is not None and names_a_folder(out):  # before the fit, which takes a while
-        from swarmpose.errors import ConfigError
-
         raise ConfigError(f"--out {out} is a folder; give the .npz file to write, "
                           f"e.g. {Path(out) / (Path(clip).stem + '_ik.npz')}")
+    if out is not None:
+        out = Path(out)
+        if out.suffix != ".npz":
+            out = out.with_name(out.name + ".npz")  # what numpy would write anyway; say so
+        existing = [p for p in (out, out.with_suffix(".subject.json")) if p.exists()]
+        if existing and not force:  # a mistyped --out must not clobber a results file
+            raise ConfigError(f"--out: {' and '.join(map(str, existing))} exist{'s' if len(existing) == 1 else ''}; "
+                              "add --force to overwrite")
     note_upsampling(clip, fps)
     c = load_clip(clip, fps=fps, unit_scale=_unit(unit), style="auto")
     _, warnings = _height_check(c)
@@ -174,9 +182,6 @@ def ik(
         "warnings": warnings,
     }
     if out is not None:
-        out = Path(out)
-        if out.suffix != ".npz":
-            out = out.with_name(out.name + ".npz")  # what numpy would write anyway; say so
         out.parent.mkdir(parents=True, exist_ok=True)
         np.savez(out, params=res.floor_params, joints=body.joints15(res.floor_params), gt_joints=c.joints,
                  joint_error_mm=res.joint_error_mm, smooth_params=res.params, frame_times=c.frame_times,

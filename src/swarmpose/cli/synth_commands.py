@@ -245,6 +245,8 @@ def show(
     out: Annotated[Path | None, typer.Option("--out", help="PNG to write (default: <DIR>/contact_NNNNNN.png, "
                                                            "the frame index in 6 digits).")] = None,
     scale: Annotated[float, typer.Option(help="Resize the sheet by this factor (0.05 to 8).")] = 1.0,
+    force: Annotated[bool, typer.Option("--force", help="Overwrite an existing --out file (the default "
+                                                        "contact_NNNNNN.png is always rewritten).")] = False,
     json_out: Annotated[bool, typer.Option("--json", help='Print one JSON object {"path", "frame", "width", '
                                                           '"height"} (the sheet written and its size in pixels).')] = False,
 ) -> None:
@@ -257,6 +259,8 @@ def show(
         raise ConfigError(f"--out {out}: the contact sheet is written as .png (or .jpg), not {out.suffix or 'a file without suffix'}")
     if not (np.isfinite(scale) and 0.05 <= scale <= 8.0):
         raise ConfigError(f"--scale must lie in [0.05, 8] (a factor on the sheet's size), got {scale!r}")
+    if out is not None and out.exists() and not force:  # a mistyped --out must not clobber another picture
+        raise ConfigError(f"--out {out} exists; add --force to overwrite it")
     sheet = contact_sheet(seq_dir, frame)
     if scale != 1.0:
         sheet = cv2.resize(sheet, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)

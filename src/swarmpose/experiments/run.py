@@ -16,8 +16,8 @@ from swarmpose.metrics import aggregate_runs
 from swarmpose.report.comparison import write_comparison
 from swarmpose.track.runner import (
     Job,
-    check_ground_truth,
     check_results_folder,
+    check_sequence_data,
     close_client,
     connect_scheduler,
     errors_from_summary,
@@ -95,7 +95,7 @@ def _run_cells(name: str, configs: list[tuple[Entry, TrackConfig]], planned: dic
             scheduler = connect_scheduler(scheduler)  # before the IK fits: a wrong address fails at once
         for cell, (seq, e, cfg) in planned.items():
             setup = prepare_track(seq, cfg, cell)  # IK floor once per cell, before the workers start
-            check_ground_truth(cell, setup, resume)
+            check_sequence_data(cell, setup, resume)
             cell.mkdir(parents=True, exist_ok=True)
             write_config(cell, setup, runs, resume)
             cells.append((e, Path(seq), cell, setup))

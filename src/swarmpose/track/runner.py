@@ -32,6 +32,7 @@ from swarmpose.track.tracker import (
     TrackConfig,
     ground_truth_identity,
     model_identity,
+    observation_identity,
     prepare_track,
     run_tracker,
     sequence_identity,
@@ -39,8 +40,8 @@ from swarmpose.track.tracker import (
     write_config,
 )
 
-__all__ = ["Job", "check_ground_truth", "check_results_folder", "close_client", "connect_scheduler", "errors_from_summary",
-           "resolve_sequence", "run_job", "run_jobs", "track_runs"]
+__all__ = ["Job", "check_results_folder", "check_sequence_data", "close_client", "connect_scheduler",
+           "errors_from_summary", "resolve_sequence", "run_job", "run_jobs", "track_runs"]
 
 
 @dataclass(frozen=True)
@@ -387,17 +388,25 @@ def check_results_folder(out_dir: Path, sequence: str | Path, config: TrackConfi
                           "or more)")
 
 
-def check_ground_truth(out_dir: Path, setup: Any, resume: bool) -> None:
-    """On a resume, refuse a sequence whose ground truth at the tracked frames is not the one the folder's
-    runs were scored against (``config.json``'s ``ground_truth_sha1``; folders written before it pass)."""
+def check_sequence_data(out_dir: Path, setup: Any, resume: bool) -> None:
+    """On a resume, refuse a sequence whose data were edited since the folder's runs were tracked: the
+    ground truth at the tracked frames (``config.json``'s ``ground_truth_sha1``) and the observation files
+    (``observations_sha1``, one hash per file). A key missing from an older folder is not checked."""
     cfg_file = out_dir / "config.json"
     if not resume or not cfg_file.is_file():
         return
-    then = read_json_object(cfg_file).get("ground_truth_sha1")
+    old = read_json_object(cfg_file)
+    where = sequence_location(setup.sequence_path)
+    then = old.get("ground_truth_sha1")
     if then is not None and then != ground_truth_identity(setup.gt_joints):
-        raise ConfigError(f"{cfg_file}: the ground truth of {sequence_location(setup.sequence_path)} at the tracked "
-                          "frames is not the one the finished runs were scored against (edited since?); track "
-                          "into another --out")
+        raise ConfigError(f"{cfg_file}: the ground truth of {where} at the tracked frames is not the one the "
+                          "finished runs were scored against (edited since?); track into another --out")
+    then = old.get("observations_sha1")
+    now = observation_identity(setup.sequence_path)
+    if isinstance(then, dict) and now is not None and then != now:
+        changed = sorted(k for k in then.keys() | now.keys() if then.get(k) != now.get(k))
+        raise ConfigError(f"{cfg_file}: {', '.join(changed)} of {where} changed since the finished runs were "
+                          "tracked (images, cameras or markers edited in place?); track into another --out")
 
 
 def _intervals(frame_times: np.ndarray) -> dict[str, float | None]:
@@ -420,7 +429,7 @@ def track_runs(sequence: str | Path, config: TrackConfig, runs: int, out_dir: Pa
             if isinstance(scheduler, str):
                 scheduler = connect_scheduler(scheduler)  # before the IK fit: a wrong address fails at once
             setup = prepare_track(sequence, config, out_dir)  # fits and caches the IK floor once
-            check_ground_truth(out_dir, setup, resume)
+            check_sequence_data(out_dir, setup, resume)
             write_config(out_dir, setup, runs, resume)
         except BaseException:
             close_client(scheduler)

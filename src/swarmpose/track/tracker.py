@@ -47,7 +47,7 @@ from swarmpose.metrics import track_errors, valid_frames
 from swarmpose.track.motion import parse_motion
 
 __all__ = ["TrackConfig", "RunResult", "prepare_track", "run_tracker", "TrackSetup", "versions", "model_identity",
-           "sequence_identity", "sequence_location", "ground_truth_identity"]
+           "sequence_identity", "sequence_location", "ground_truth_identity", "observation_identity"]
 
 IMAGE_FITNESS = ("silhouette_edge", "deutscher_reid")
 MARKER_FITNESS = ("markers", "reprojection")
@@ -255,6 +255,45 @@ def ground_truth_identity(gt_joints: np.ndarray) -> str:
     were scored against (and started from, by IK) are still the sequence's. ``sequence_identity`` covers
     the synthesis record, not data files edited in place."""
     return hashlib.sha1(np.ascontiguousarray(gt_joints, dtype=np.float64).tobytes()).hexdigest()[:16]
+
+
+def observation_identity(sequence_path: str | Path) -> dict[str, str] | None:
+    """A hash per observation file of a sequence folder (the view archives, cameras, markers, backgrounds and
+    frame table that ``sequence.json`` lists; the ground truth has :func:`ground_truth_identity`), so that a
+    resume sees images or calibrations edited in place. A zip archive (``.zip``, ``.npz``) is hashed by its
+    entries' names, CRC-32s and sizes, which a re-synthesis with the same settings reproduces (the archives'
+    own bytes carry the writing time); other files by their bytes. ``None`` for a dataset spec, whose files
+    the dataset readers own."""
+    meta = Path(str(sequence_path)) / "sequence.json"
+    if not meta.is_file():  # a dataset spec (``humaneva:...``) is not a folder
+        return None
+    try:
+        files = json.loads(meta.read_text()).get("files", {})
+    except (OSError, ValueError, AttributeError):
+        return None
+    if not isinstance(files, dict):
+        return None
+    listed = [v for k, v in files.items() if k != "ground_truth" and isinstance(v, str)]
+    if isinstance(files.get("views"), dict):
+        listed += [v for v in files["views"].values() if isinstance(v, str)]
+    return {rel: _file_identity(meta.parent / rel) for rel in sorted(set(listed))}
+
+
+def _file_identity(path: Path) -> str:
+    import zipfile
+
+    if not path.is_file():
+        return "missing"
+    try:
+        with zipfile.ZipFile(path) as archive:
+            entries = [(e.filename, e.CRC, e.file_size) for e in archive.infolist()]
+        return hashlib.sha1(repr(entries).encode()).hexdigest()[:16]
+    except (zipfile.BadZipFile, OSError):
+        digest = hashlib.sha1()
+        with open(path, "rb") as f:
+            for block in iter(lambda: f.read(1 << 20), b""):
+                digest.update(block)
+        return digest.hexdigest()[:16]
 
 
 def model_identity(model: str) -> str:
@@ -578,6 +617,7 @@ def config_record(setup: TrackSetup, runs: int) -> dict[str, Any]:
         "sequence": sequence_location(setup.sequence_path),
         "sequence_identity": sequence_identity(setup.sequence_path),
         "ground_truth_sha1": ground_truth_identity(setup.gt_joints),
+        "observations_sha1": observation_identity(setup.sequence_path),
         "model_spec_sha1": model_identity(setup.config.model),
         "frames": int(len(setup.frame_indices)),
         "evals_per_frame": setup.evals_per_frame,
