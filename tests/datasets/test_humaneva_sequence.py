@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import shutil
 from pathlib import Path
 
@@ -171,6 +172,8 @@ def test_missing_and_broken_files_are_named(he1_copy, tmp_path):
     (sd / "Image_Data" / "Walking_1_(C2).avi").unlink()
     with pytest.raises(DataError, match=r"Walking_1_\(C2\)\.avi: missing video"):
         humaneva_sequence(he1_copy.spec + "?split=all", cache_dir=tmp_path)
+    with pytest.raises(DataError, match=rf"missing video.*`swarmpose datasets check {re.escape(str(sd))}` lists"):
+        open_dataset_sequence(he1_copy.spec + "?split=all", cache_dir=tmp_path)  # what track opens with
     (sd / "Image_Data" / "Walking_1_(C2).avi").write_bytes(b"RIFF\x00\x00" + bytes(300))
     with pytest.raises((DataError, FormatError), match=r"Walking_1_\(C2\)\.avi"):
         humaneva_sequence(he1_copy.spec + "?split=all", cache_dir=tmp_path)

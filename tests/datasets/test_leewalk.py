@@ -43,6 +43,25 @@ def test_missing_calibration_names_the_expected_files(leewalk_root: Path, tmp_pa
     assert "Spica3Calib.cal" in msg and "LeeWalkLayout" in msg
 
 
+def test_a_source_that_fails_to_open_points_to_the_check(leewalk_root: Path, tmp_path: Path):
+    """Opening stops at the first problem (here the missing camera 2, found before cam1.cal is parsed); the
+    message names `swarmpose datasets check`, whose report lists both."""
+    from swarmpose.datasets import check_dataset
+
+    root = tmp_path / "lee"
+    shutil.copytree(leewalk_root, root)
+    (root / "calibration" / "cam1.cal").write_text("not a calibration\n")
+    (root / "calibration" / "cam2.cal").unlink()
+    with pytest.raises(DataError, match="calibration file for camera 2") as e:
+        open_dataset_sequence(f"leewalk:{root}?frames=1-5")
+    assert f"`swarmpose datasets check {root}` lists every problem" in str(e.value)
+    report = " ".join(check_dataset(root).problems)
+    assert "cam1.cal" in report and "camera 2" in report
+    with pytest.raises(DataError, match="no such Lee walk folder") as e:  # nothing there to check
+        open_dataset_sequence(f"leewalk:{tmp_path / 'nowhere'}")
+    assert "datasets check" not in str(e.value)
+
+
 def test_missing_images_and_silhouettes(leewalk_root: Path, tmp_path: Path):
     root = tmp_path / "lee"
     shutil.copytree(leewalk_root, root)

@@ -13,11 +13,13 @@ A dataset source is a string with a prefix:
 from __future__ import annotations
 
 import os
+from pathlib import Path
 from typing import Any
 
 from swarmpose.datasets.check import CheckReport, check_dataset
 from swarmpose.datasets.humaneva import humaneva_sequence, open_humaneva, parse_humaneva_spec
 from swarmpose.datasets.leewalk import LeeWalkLayout, leewalk_sequence, open_leewalk
+from swarmpose.errors import DataError, FormatError, ShapeError
 from swarmpose.io.sequence import MultiViewSequence
 
 __all__ = [
@@ -74,10 +76,17 @@ def open_dataset_sequence(source: str | os.PathLike[str], **options: Any) -> Mul
         Read lazily; close it (or use ``with``) to release the videos or archives.
     """
     s = os.fspath(source)
-    if s.startswith("humaneva:"):
-        return humaneva_sequence(s, **options)
-    if s.startswith("leewalk:"):
-        return leewalk_sequence(s)
-    from swarmpose.io.sequence import open_sequence
+    if not s.startswith(DATASET_PREFIXES):
+        from swarmpose.io.sequence import open_sequence
 
-    return open_sequence(s)
+        return open_sequence(s)
+    try:
+        return humaneva_sequence(s, **options) if s.startswith("humaneva:") else leewalk_sequence(s)
+    except (DataError, FormatError, ShapeError) as error:
+        # the reader stops at the first problem; the check lists all of them (a missing camera 2 and a
+        # corrupt cam1.cal, say, in one report)
+        folder = parse_humaneva_spec(s).subject_dir if s.startswith("humaneva:") else Path(s[8:].partition("?")[0])
+        if folder.is_dir() and error.args and isinstance(error.args[0], str):
+            error.args = (f"{error.args[0]} (`swarmpose datasets check {folder}` lists every problem of the "
+                          "folder)", *error.args[1:])
+        raise
