@@ -14,7 +14,7 @@ For every processed frame (the sequence subsampled to the requested rate) the tr
 Frame 0 is tracked like the others, from the initial pose (the IK fit of its ground truth, or a given
 pose). The thesis takes the ground truth as frame 0's estimate instead (sec. 6.1: "the error of SPPSO at
 frame 0 is always zero"); measured on the walk (SPPSO, 5 runs at 60 fps and 100 at 20 fps), frame 0 ends
-18 and 29 mm from the truth on average, which adds 0.07 and 0.33 mm to D_mean.
+18 and 29 mm from the truth on average, which adds 0.07 and 0.34 mm to D_mean.
 
 Results are written as the run goes (``progress.npz``, replaced atomically after each frame, with
 the generator's state and the carried particle set), so an interrupted run resumes exactly where it
