@@ -118,3 +118,30 @@ def test_measurements_match_the_geometry(walk_body: ObservationBody, walk_clip):
     fwd = np.array([0.0, -1.0, 0.0])  # CMU rest pose faces -y in world axes
     depth = (chest @ fwd).max() - (chest @ fwd).min()
     assert m.sternum_t10 == pytest.approx(depth + 14.0, rel=0.01)
+
+
+def _winding_normals(body: ObservationBody, k: int = 10) -> tuple[np.ndarray, np.ndarray]:
+    """The vertex normals the renderer shades with, and the area-weighted normals of the triangles around
+    each vertex taken along their winding (the side back-face culling treats as the front)."""
+    v, n = body.mesh(k)
+    f = body.faces.astype(np.int64)
+    fn = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+    acc = np.zeros_like(v)
+    for i in range(3):
+        np.add.at(acc, f[:, i], fn)
+    return n, acc / np.linalg.norm(acc, axis=1, keepdims=True)
+
+
+def test_every_part_is_wound_outwards_with_surface_normals(walk_body: ObservationBody):
+    """Every part's triangles wind counter-clockwise seen from outside, as the rasteriser's back-face culling
+    assumes, and the shading normals are the surface's. The head's axes frame was mirrored (det -1) until
+    stop 27: its triangles faced inwards and the images showed the inside of the back of the head (the neck
+    through the face), 0.15 % of the walk's pixels; a normal scaled by the semi-axes instead of divided by
+    them left every test passing."""
+    n, winding = _winding_normals(walk_body)
+    np.testing.assert_allclose(np.linalg.norm(n, axis=1), 1.0, atol=1e-9)
+    cos = np.einsum("vi,vi->v", winding, n)
+    for i, part in enumerate(walk_body.parts):
+        c = cos[walk_body.vertex_part == i]
+        assert c.mean() > 0.995 and c.min() > 0.99, (part.name, float(c.mean()), float(c.min()))
+    assert all(np.linalg.det(p.axes) > 0 for p in walk_body.parts if p.kind == "ellipsoid")

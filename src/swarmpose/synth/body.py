@@ -568,7 +568,9 @@ def _build_parts(clip: MocapClip, rest: np.ndarray, rest_end: np.ndarray,
         head_vec = 95.0 * sc * up_torso
     capsule("neck", "skin", thorax, head, 52.0, 48.0)
     head_axes = _frame(_unit(head_vec), _FWD)  # columns: up, forward, up x forward
-    head_axes = np.stack([head_axes[:, 2], head_axes[:, 1], head_axes[:, 0]], axis=1)  # lateral, fwd, up
+    # lateral = forward x up, so that (lateral, fwd, up) stays right-handed: a mirrored frame turns the
+    # ellipsoid's triangles inside out, and back-face culling then drew the inside of the back of the head
+    head_axes = np.stack([-head_axes[:, 2], head_axes[:, 1], head_axes[:, 0]], axis=1)  # lateral, fwd, up
     head_centre = rest[head] + 0.45 * head_vec + 12.0 * sc * _FWD
     ellipsoid("head", "skin", head, head_centre, head_axes, (74.0, 94.0, 108.0))
 

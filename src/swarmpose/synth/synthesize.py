@@ -58,7 +58,7 @@ from swarmpose.synth.scene import Room, SceneSettings, blur, form_image, render_
 __all__ = ["SYNTH_VERSION", "SynthReport", "synthesize", "cached_sequence", "iou_summary"]
 
 #: Bumped whenever the synthesiser's output for the same inputs changes (part of the cache key).
-SYNTH_VERSION = 2  # 2: sequences carry the subject measurements
+SYNTH_VERSION = 3  # 2: sequences carry the subject measurements; 3: the head's triangles face outwards
 
 
 def _percentiles(values: np.ndarray) -> dict[str, float]:
