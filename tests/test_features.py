@@ -148,3 +148,51 @@ def test_feature_options():
     low = compute_features(frame[None], back[None], cams, silhouette_options=low_sil, edge_options=low_edge)
     inner = (np.abs(np.arange(H) - 300) <= 1)[:, None] & (cv2.erode(mask, np.ones((15, 15), np.uint8)) > 0)
     assert low.edges[0][inner].mean() > 0.3 > default.edges[0][inner].mean()
+
+
+def test_colour_silhouette_uses_the_largest_channel_difference():
+    """(features.py:136 max over channels -> min): the existing colour test uses three equal channels.
+    A person who differs from the background in one channel only is still foreground."""
+    from swarmpose.features import silhouette
+
+    bg = np.full((60, 80, 3), 100, np.uint8)
+    img = bg.copy()
+    img[20:40, 30:50, 2] = 170  # only the red channel (BGR) differs, by 70 grey levels
+    sil = silhouette(img, bg)
+    assert sil[22:38, 32:48].all() and sil.sum() == pytest.approx(400, abs=40)
+
+
+@pytest.mark.parametrize("sigma", [1.0, 2.0, 3.0])
+def test_edge_blur_has_the_requested_sigma(sigma):
+    """(features.py:237 GaussianBlur sigma -> sigma / 2): the existing edge tests only check that the blur
+    stays within 20 px of the person. The profile across a one-pixel line is the Gaussian of sigma_px."""
+    from swarmpose.features import blur_edges, edge_map
+
+    edges = np.zeros((40, 60), np.uint8)
+    edges[:, 30] = 1
+    e = blur_edges(edges, sigma)
+    d = np.array([1, 2, 3])
+    np.testing.assert_allclose(e[20, 30 + d], np.exp(-d**2 / (2 * sigma**2)), rtol=0.03, atol=0.01)
+    # the same through edge_map (a strong vertical step, raw Sobel: the edge is two pixels wide)
+    img = np.full((40, 60), 50, np.uint8)
+    img[:, 30:] = 200
+    em = edge_map(img, np.ones_like(img), sigma_px=sigma, presmooth=False)
+    assert em[20, 29] == pytest.approx(1.0) and em[20, 30] == pytest.approx(1.0)
+    np.testing.assert_allclose(em[20, 30 + d], em[20, 29 - d], atol=1e-6)  # symmetric about the step
+    expect = 0.5 * (np.exp(-(d**2) / (2 * sigma**2)) + np.exp(-((d + 1) ** 2) / (2 * sigma**2)))
+    expect /= 0.5 * (1 + np.exp(-1 / (2 * sigma**2)))
+    np.testing.assert_allclose(em[20, 30 + d], expect, rtol=0.05, atol=0.01)
+
+
+def test_silhouette_threshold_is_strict():
+    """(features.py:142 `d > threshold` -> `d >= threshold`): the documented rule is a difference *above*
+    the threshold."""
+    from swarmpose.features import silhouette
+
+    bg = np.full((30, 30), 100, np.uint8)
+    for diff, fg in ((25, 0), (26, 1)):
+        img = bg.copy()
+        img[10:20, 10:20] += diff
+        sil = silhouette(img, bg, threshold=25, blur_px=0, open_px=0, close_px=0)
+        assert sil[10:20, 10:20].min() == sil[10:20, 10:20].max() == fg, diff
+        assert sil.sum() == 100 * fg

@@ -107,3 +107,42 @@ def test_the_ik_floor_is_the_best_fit_not_the_smooth_one(walk):
     assert np.abs(res.floor_params - res.params)[:, model.is_rotation].max() < 0.5  # radians
     quick = fit_ik(model, clip.joints[:5], polish=False)
     np.testing.assert_array_equal(quick.floor_params, quick.params)
+
+
+def test_initial_root_pose_recovers_a_tilted_root():
+    """(ik.py:73 `arctan2(-R[2, 0], ...)` sign): with zero joint angles, the rigid fit of pelvis, hips
+    and thorax gives back the root exactly."""
+    from swarmpose.body.ik import initial_root_pose
+
+    m = load_model("balan31")
+    x = m.zero_pose()
+    for name, v in (("pelvis_rx", 0.3), ("pelvis_ry", -0.4), ("pelvis_rz", 2.0), ("pelvis_tx", 120.0),
+                    ("pelvis_ty", -300.0), ("pelvis_tz", 950.0)):
+        x[m.param_index(name)] = v
+    np.testing.assert_allclose(initial_root_pose(m, m.joints15(x)[0]), x, atol=1e-9)
+
+
+def test_ik_fit_does_not_depend_on_where_the_subject_faces(mocap_dir):
+    """(ik.py:133 the rest prior also on the root): the smooth fit (the tracker's start pose) must be
+    equivariant under a rotation of the world about the vertical -- only the heading and the root's
+    horizontal position change. Measured: the mutant's heading differs by ~1e-2 rad."""
+    from swarmpose.body.ik import fit_ik
+    from swarmpose.body.model import BodyModel
+    from swarmpose.body.spec import load_spec
+    from swarmpose.body.subject import subject_from_clip
+    from swarmpose.io.mocap import load_clip
+
+    clip = load_clip(mocap_dir / "cmu_16_16_walk.bvh", fps=30)
+    spec = load_spec("balan31")
+    model = BodyModel(spec, subject_from_clip(spec, clip), "thesis")
+    gt = clip.joints[:8]
+    th = 2.5
+    c, s = np.cos(th), np.sin(th)
+    Rz = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    a = fit_ik(model, gt, polish=False).params
+    b = fit_ik(model, gt @ Rz.T, polish=False).params
+    rz, tx, ty = (model.param_index(n) for n in ("pelvis_rz", "pelvis_tx", "pelvis_ty"))
+    np.testing.assert_allclose(np.angle(np.exp(1j * (b[:, rz] - a[:, rz] - th))), 0.0, atol=1e-4)
+    np.testing.assert_allclose(b[:, [tx, ty]], a[:, [tx, ty]] @ Rz[:2, :2].T, atol=0.05)
+    others = [i for i in range(model.n_params) if i not in (rz, tx, ty)]
+    np.testing.assert_allclose(b[:, others], a[:, others], atol=1e-4)

@@ -152,3 +152,20 @@ def test_full45_has_45_parameters_and_same_zero_pose_joints():
 def test_bad_pose_shape_is_a_clear_error(model):
     with pytest.raises(ValueError, match=r"expected shape \(N, 31\)"):
         model.forward(np.zeros((3, 30)))
+
+
+@pytest.mark.parametrize("name", ["balan31", "full45"])
+def test_every_variant_change_reaches_the_cone_arrays(name):
+    """(model.py:265 thickness ignored) and M06 (model.py:261 start_shift ignored): every change the
+    spec's "thesis" variant lists (length, thickness, start_shift) shows in the compiled cones."""
+    plain = load_model(name, variant=None)
+    thesis = load_model(name, variant="thesis")
+    p, t = plain.cone_arrays, thesis.cone_arrays
+    for cname, mod in plain.spec.variants["thesis"].items():
+        k = p.index(cname)
+        axis_p = p.end[k] - p.start[k]
+        frac = next(c for c in plain.spec.cones if c.name == cname)
+        m = np.asarray(plain.subject.offsets[frac.axis])
+        np.testing.assert_allclose(t.start[k], m * (frac.start_frac + mod.get("start_shift", 0.0)), atol=1e-9)
+        np.testing.assert_allclose(t.end[k] - t.start[k], axis_p * mod.get("length", 1.0), atol=1e-9)
+        np.testing.assert_allclose(t.radii[k], p.radii[k] * mod.get("thickness", 1.0), rtol=1e-12)

@@ -79,3 +79,17 @@ def test_missing_and_unknown_fields_are_named():
         SubjectMeasurements.from_dict(data, path="seq.json")
     with pytest.raises(FormatError, match="KneeWdth"):
         SubjectMeasurements.from_dict({**VALUES, "KneeWdth": 100.0}, path="seq.json")
+
+
+def test_subject_cones_scale_with_the_subjects_legs(mocap_dir):
+    """(subject.py:123 `ratio = leg / ref_leg` -> 1.0): the shared clips' legs are all within 3 % of the
+    reference, so nothing noticed. The same skeleton read with a 20 % smaller unit gets 20 % thinner cones."""
+    from swarmpose.body.spec import load_spec
+    from swarmpose.body.subject import subject_from_clip
+    from swarmpose.io.mocap import UNIT_SCALES, load_clip
+
+    spec = load_spec("balan31")
+    full = subject_from_clip(spec, load_clip(mocap_dir / "cmu_16_16_walk.bvh"))
+    small = subject_from_clip(spec, load_clip(mocap_dir / "cmu_16_16_walk.bvh", unit_scale=0.8 * UNIT_SCALES["cmu"]))
+    for name, (r0, r1, sx, sy) in full.cones.items():
+        np.testing.assert_allclose(small.cones[name], (0.8 * r0, 0.8 * r1, sx, sy), rtol=1e-9)

@@ -158,3 +158,30 @@ def test_a_collision_cone_lying_in_its_frames_xy_plane_is_refused(tmp_path):
     flat = BodyModel(load_spec(path), None, "thesis")
     with pytest.raises(ConfigError, match="collision cone 'torso' lies in its joint frame's x-y plane"):
         HardPriors(flat)
+
+
+def test_joint_limits_are_inclusive():
+    """(model.py:178 `p <= upper` -> `p < upper`). Optimisers clip particles onto the bounds; a pose
+    exactly on a limit must stay valid."""
+    m = load_model("balan31")
+    for bound in (m.lower, m.upper):
+        x = np.where(np.isfinite(bound), bound, 0.0)
+        assert m.within_limits(x).all()
+        assert HardPriors(m, check_collisions=False).valid(x).all()
+    outside = np.where(np.isfinite(m.upper), m.upper + 1e-9, 0.0)
+    assert not m.within_limits(outside).any()
+
+
+@pytest.mark.parametrize("tol", [0.0, 0.25, 0.8])
+def test_numba_collisions_match_the_reference_at_any_tolerance(tol):
+    """(priors.py:88 keep = `1 - tol` -> `tol`): the existing comparison runs only at the default 0.5,
+    where both are 0.5."""
+    m = load_model("balan31")
+    priors = HardPriors(m, penetration_tolerance=tol)
+    rng = np.random.default_rng(1)
+    x0 = m.zero_pose()
+    x0[m.param_index("pelvis_tz")] = 1000.0
+    poses = x0 + rng.normal(scale=0.6, size=(400, m.n_params)) * m.is_rotation
+    fast = priors.collisions(poses)
+    assert np.array_equal(fast, priors.collisions_reference(poses))
+    assert fast.any() and not fast.all()

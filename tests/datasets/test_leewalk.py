@@ -127,3 +127,19 @@ def test_ground_truth_joints_lost_markers_and_units(leewalk_root: Path, tmp_path
     np.savetxt(gt_file, joints.reshape(len(joints), 45) / 1000.0)  # metres
     with pytest.raises(FormatError, match=r"joints15.txt.*median thigh \(hip to knee\) is 0\.\d+, expected 250-700 mm"):
         open_leewalk(root)
+
+
+def test_lee_walk_keeps_a_joint_with_one_zero_coordinate():
+    """(leewalk.py:167 lost marker = all three coordinates 0 -> any one): a joint exactly on a world
+    axis plane is not lost."""
+    from swarmpose.datasets.leewalk import _checked_joints
+    from swarmpose.joints import JOINT_INDEX
+
+    gt = np.random.default_rng(0).uniform(100.0, 1000.0, (3, 15, 3))
+    gt[:, JOINT_INDEX["l_knee"]] = gt[:, JOINT_INDEX["l_hip"]] - [0.0, 0.0, 420.0]
+    gt[:, JOINT_INDEX["r_knee"]] = gt[:, JOINT_INDEX["r_hip"]] - [0.0, 0.0, 420.0]
+    gt[1, 3] = (0.0, 512.5, 900.0)  # on the x = 0 plane
+    gt[2, 5] = 0.0  # lost
+    out = _checked_joints(gt, Path("joints15.txt"))
+    np.testing.assert_array_equal(out[1, 3], gt[1, 3])
+    assert np.isnan(out[2, 5]).all() and np.isfinite(np.delete(out.reshape(-1, 3), 2 * 15 + 5, axis=0)).all()

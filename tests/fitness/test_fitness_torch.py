@@ -248,3 +248,27 @@ def test_demo_scene_at_half_resolution(model, true_pose):
     half = demo_frame(model, true_pose, cams, rng=np.random.default_rng(4))
     poses = _wild_poses(model, true_pose, cams, n=30, seed=3)
     _assert_same(_torch_fit(model, half).measure(poses), make_fitness("silhouette_edge", model).bind(half).measure(poses))
+
+
+def test_torch_backend_matches_numba_on_the_image_border():
+    """(torch_backend.py:693 `xi < W` -> `xi <= W`): the demo scenes have zero edges and silhouette at
+    the border, so a sample read from outside the last column goes unnoticed. With all-ones feature images
+    every sample at x or y in [W - 1/2, W + 1/2) matters."""
+    pytest.importorskip("torch")
+    from swarmpose.body.model import load_model
+    from swarmpose.features import FrameFeatures
+    from swarmpose.fitness import make_fitness
+    from swarmpose.fitness.scene import demo_cameras
+
+    m = load_model("balan31")
+    cams = demo_cameras(4, width=322, height=242)
+    ones = FrameFeatures(np.ones((4, 242, 322), np.uint8), np.ones((4, 242, 322), np.float32), cams)
+    rng = np.random.default_rng(3)
+    p = np.tile(m.zero_pose(), (200, 1))
+    p += rng.normal(0.0, 2.0, p.shape) * m.sigma
+    p[:, 3:6] = rng.uniform([-2500, -2500, 500], [2500, 2500, 1300], (200, 3))  # bodies across the views
+    for kind in ("silhouette_edge", "deutscher_reid"):
+        fast = make_fitness(kind, m).bind(ones).measure(p, None)
+        tor = make_fitness(kind, m, backend="torch", backend_options={"device": "cpu"}).bind(ones).measure(p, None)
+        for f in ("edge_sum", "edge_count", "region_sq", "region_count", "overlap", "projected"):
+            np.testing.assert_allclose(getattr(tor, f), getattr(fast, f), atol=1e-9, rtol=0, err_msg=f)

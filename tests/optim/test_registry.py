@@ -232,3 +232,20 @@ def test_aapso_six_soft_stages(balan31):
         assert np.allclose(sc[torso], 0.1)
         assert np.allclose(sc[balan31.group(group)], 1.0)
         assert np.count_nonzero(sc) == len(torso) + len(balan31.group(group))
+
+
+def test_sppso3_and_hpso12_stage_options_and_scales():
+    """(sppso3 stage 3 fitness EDGE_ALL -> torso+upper), M28 (sppso3 stage 1 root scale 1 -> 0.5), M29
+    (hpso12 fitness EDGE_ALL -> torso): test_sppso3_schedule_table_6_3 checks only stage 2's options and no
+    stage-1 scale; test_hpso12 no options."""
+    from swarmpose.body.model import load_model
+    from swarmpose.optim import get
+
+    m = load_model("balan31")
+    s1, s2, s3 = get("sppso3", model=m).stages
+    assert np.array_equal(s1.effective_scale, np.r_[np.ones(6), np.zeros(25)])
+    assert [dict(s.fitness_options) for s in (s1, s2, s3)] == [
+        {"edge_cones": "torso", "edge_top": True}, {"edge_cones": "torso+upper_limbs", "edge_top": True},
+        {"edge_cones": "all", "edge_top": True}]
+    assert all(dict(s.fitness_options) == {"edge_cones": "all", "edge_top": True}
+               for s in get("hpso12", model=m).stages)

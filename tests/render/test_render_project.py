@@ -222,3 +222,46 @@ def test_cone_tables_validation(model):
     fake = type("M", (), {"cone_arrays": bad})()
     with pytest.raises(ConfigError):
         cone_tables(fake)
+
+
+def test_distortion_cap_lies_beyond_the_image():
+    """(project.py:100 r2_max = 4 x corner -> 1 x corner): outline vertices just outside the image
+    (between 1 and 4 times the corner radius) must project as Camera.project does, else the in-image edge
+    of a limb that leaves the picture bends."""
+    from swarmpose.fitness.scene import demo_cameras
+    from swarmpose.render._kernels import project_cam_point
+    from swarmpose.render.project import camera_tables
+
+    cam = demo_cameras(1)[0]  # k1 = -0.12, k2 = 0.05: monotone up to 4 x the corner radius
+    _, _, tab, _, _ = camera_tables([cam])
+    corner_r2 = max(((u - cam.cx) / cam.fx) ** 2 + ((v - cam.cy) / cam.fy) ** 2
+                    for u in (0, cam.width - 1) for v in (0, cam.height - 1))
+    assert tab[0, 10] == pytest.approx(4.0 * corner_r2)
+    for k in (1.5, 2.5, 3.5):  # camera-frame points at k x the corner radius, off the image
+        a = np.sqrt(k * corner_r2 / 2.0)
+        p_cam = np.array([a * 2000.0, a * 2000.0, 2000.0])
+        world = cam.R.T @ (p_cam - cam.t)
+        np.testing.assert_allclose(project_cam_point(*p_cam, tab[0]), cam.project(world[None])[0], atol=1e-6)
+
+
+def test_near_plane_rule_matches_the_reference_as_a_camera_approaches():
+    """(_kernels.py:147 `c1z < near + rmax * s` -> `near + rmax`): killed today only by the torch parity
+    test (skipped where PyTorch is not installed). Sweep cameras towards the body, numba vs reference."""
+    from swarmpose.body.model import load_model
+    from swarmpose.camera import Camera
+    from swarmpose.render import project_cones
+
+    m = load_model("balan31")
+    pose = m.zero_pose()
+    pose[5] = 1000.0
+    cams = []
+    for az in np.linspace(0.0, 2 * np.pi, 6, endpoint=False):
+        for d in np.linspace(150.0, 900.0, 26):
+            for h in (400.0, 1000.0, 1500.0):
+                eye = (d * np.cos(az), d * np.sin(az), h)
+                cams.append(Camera.look_at("c", eye=eye, target=(3 * eye[0], 3 * eye[1], h)))  # looking away
+                cams.append(Camera.look_at("c", eye=eye, target=(0.0, 0.0, h)))  # looking at the body
+    a = project_cones(m, pose, cams)
+    b = project_cones(m, pose, cams, backend="reference")
+    np.testing.assert_array_equal(a.n_vertices, b.n_vertices)
+    assert (a.n_vertices == 0).any() and (a.n_vertices > 0).any()

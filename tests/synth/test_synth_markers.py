@@ -113,3 +113,47 @@ def test_bad_settings():
         MarkerSettings(markers="all")
     with pytest.raises(ConfigError, match="false_region"):
         MarkerSettings(false_region="sky")
+
+
+def _detect(uv, settings, seed=0, boxes=None):
+    from swarmpose.synth.markers import detect_markers
+
+    C = uv.shape[0]
+    boxes = np.full((C, 4), np.nan) if boxes is None else boxes
+    return detect_markers(uv, np.ones(uv.shape[:2], bool), boxes, (644, 484), settings, np.random.default_rng(seed))
+
+
+def test_marker_noise_reaches_the_chosen_fraction():
+    """(markers.py:275 `u < noise_fraction` -> `>`): with the default fraction 1 no detection got noise,
+    and the clip test only bounds the error from above."""
+    from swarmpose.synth.markers import MarkerSettings
+
+    uv = np.random.default_rng(0).uniform([50, 50], [590, 430], (1, 2000, 2))
+    for frac in (1.0, 0.3):
+        pos, ids = _detect(uv, MarkerSettings(dropout=0.0, false_per_view=0.0, noise_px=2.0, noise_fraction=frac))
+        err = pos[0] - uv[0, ids[0]]
+        moved = np.any(err != 0.0, axis=1)
+        assert moved.mean() == pytest.approx(frac, abs=0.04)
+        assert err[moved].std() == pytest.approx(2.0, rel=0.08)
+
+
+def test_false_detections_fill_the_grown_box():
+    """(markers.py:282 `box_max + margin` -> `box_max - margin`): the existing test checks containment
+    only, which a smaller box passes. The false detections cover the whole grown box."""
+    from swarmpose.synth.markers import MarkerSettings
+
+    s = MarkerSettings(dropout=0.0, false_per_view=3000.0, false_margin_px=10.0)
+    pos, ids = _detect(np.zeros((1, 0, 2)), s, seed=1, boxes=np.array([[100.0, 50.0, 200.0, 250.0]]))
+    p = pos[0]
+    assert np.all(p >= [90.0, 40.0]) and np.all(p <= [210.0, 260.0])
+    np.testing.assert_allclose(p.min(axis=0), [90.0, 40.0], atol=1.0)
+    np.testing.assert_allclose(p.max(axis=0), [210.0, 260.0], atol=1.0)
+
+
+def test_noisy_detections_stay_inside_the_image():
+    """(markers.py:284 clipping to the image removed): markers on the image border plus noise."""
+    from swarmpose.synth.markers import MarkerSettings
+
+    uv = np.array([[[0.0, 0.0], [643.0, 483.0], [0.0, 483.0], [643.0, 0.0]] * 50])
+    pos, _ = _detect(uv, MarkerSettings(dropout=0.0, false_per_view=0.0, noise_px=3.0))
+    assert np.all(pos[0] >= 0.0) and np.all(pos[0] <= [643.0, 483.0])

@@ -149,3 +149,17 @@ def test_background_kernel_matches_the_plain_room_shading(supersample):
     ref = acc / ss**2
     assert np.ptp(ref) > 20.0  # floor, walls and panels in view, not a flat grey
     np.testing.assert_allclose(got, ref, atol=1e-3)
+
+
+def test_sensor_noise_has_the_set_sigma():
+    """(scene.py:386 sensor noise never added): nothing measured the noise of a formed image."""
+    from swarmpose.synth.scene import SceneSettings, form_image
+
+    bg = np.full((200, 300), 120.0, np.float32)
+    person = np.zeros_like(bg)
+    mask = np.zeros(bg.shape, bool)
+    for sigma in (2.5, 6.0):
+        img = form_image(person, mask, bg, SceneSettings(noise_sigma=sigma), np.random.default_rng(0))
+        assert img.astype(float).std() == pytest.approx(np.sqrt(sigma**2 + 1 / 12), rel=0.05)
+    img = form_image(person, mask, bg, SceneSettings(noise_sigma=0.0), np.random.default_rng(0))
+    assert np.all(img == 120)
