@@ -22,8 +22,7 @@ import numpy as np
 from swarmpose.body.ik import fit_ik
 from swarmpose.body.model import BodyModel
 from swarmpose.body.spec import load_spec
-from swarmpose.body.subject import subject_from_clip
-from swarmpose.io.mocap import load_clip
+from swarmpose.io.mocap import load_clip, subject_from_clip
 
 ROOT = Path(__file__).resolve().parents[1]
 MOCAP = ROOT.parent / "shared" / "data" / "mocap"

@@ -9,8 +9,7 @@ from swarmpose.body.ik import fit_ik
 from swarmpose.body.model import BodyModel, load_model
 from swarmpose.body.priors import HardPriors
 from swarmpose.body.spec import load_spec
-from swarmpose.body.subject import subject_from_clip
-from swarmpose.io.mocap import load_clip
+from swarmpose.io.mocap import load_clip, subject_from_clip
 
 
 def test_ik_recovers_the_models_own_poses():
@@ -129,8 +128,7 @@ def test_ik_fit_does_not_depend_on_where_the_subject_faces(mocap_dir):
     from swarmpose.body.ik import fit_ik
     from swarmpose.body.model import BodyModel
     from swarmpose.body.spec import load_spec
-    from swarmpose.body.subject import subject_from_clip
-    from swarmpose.io.mocap import load_clip
+    from swarmpose.io.mocap import load_clip, subject_from_clip
 
     clip = load_clip(mocap_dir / "cmu_16_16_walk.bvh", fps=30)
     spec = load_spec("balan31")

@@ -82,11 +82,10 @@ def test_missing_and_unknown_fields_are_named():
 
 
 def test_subject_cones_scale_with_the_subjects_legs(mocap_dir):
-    """(subject.py:123 `ratio = leg / ref_leg` -> 1.0): the shared clips' legs are all within 3 % of the
+    """(subject.py:121 `ratio = leg / ref_leg` -> 1.0): the shared clips' legs are all within 3 % of the
     reference, so nothing noticed. The same skeleton read with a 20 % smaller unit gets 20 % thinner cones."""
     from swarmpose.body.spec import load_spec
-    from swarmpose.body.subject import subject_from_clip
-    from swarmpose.io.mocap import UNIT_SCALES, load_clip
+    from swarmpose.io.mocap import UNIT_SCALES, load_clip, subject_from_clip
 
     spec = load_spec("balan31")
     full = subject_from_clip(spec, load_clip(mocap_dir / "cmu_16_16_walk.bvh"))

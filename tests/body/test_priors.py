@@ -88,8 +88,7 @@ def test_numba_collisions_match_the_numpy_reference(model, priors):
 @pytest.fixture(scope="module")
 def tilted_model(walk_clip_path):
     """The walk's subject: its torso leans back from the pelvis to the shoulders (axis not along z)."""
-    from swarmpose.body.subject import subject_from_clip
-    from swarmpose.io.mocap import load_clip
+    from swarmpose.io.mocap import load_clip, subject_from_clip
 
     base = load_model("balan31")
     model = base.with_subject(subject_from_clip(base.spec, load_clip(walk_clip_path, fps=30)))

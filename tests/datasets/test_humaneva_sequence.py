@@ -144,6 +144,8 @@ def test_dispatch_helpers(he1, tmp_path, monkeypatch):
     assert (tmp_path / "cache" / "humaneva").is_dir()
     with open_dataset_sequence(spec, silhouettes=False) as seq:
         assert seq.streams == ("image",)
+    with open_sequence(spec) as seq:  # swarmpose.datasets registers its prefixes with io's open_sequence
+        assert seq.view_names == ["C1", "C2"]
 
 
 @pytest.mark.parametrize(("spec", "match"), [
@@ -292,7 +294,7 @@ class _ClosedCapture:
 def test_imageio_fallback(he1, monkeypatch):
     import imageio.v2 as iio
 
-    import swarmpose.datasets.humaneva as he
+    import swarmpose.datasets.humaneva.video as he
 
     monkeypatch.setattr(he.cv2, "VideoCapture", _ClosedCapture)
     frames = [np.full((6, 8, 3), 10 * i, np.uint8) for i in range(4)]

@@ -157,8 +157,7 @@ def test_errors(tmp_path: Path):
 def test_exported_clip_loads_back_as_ground_truth(tmp_path: Path, model_name: str):
     """An exported file is a clip swarmpose reads (style "auto" -> "swarmpose", by joint name): its 15
     joints are the model's, in the same world, and the subject measured from it is the model's."""
-    from swarmpose.body.subject import subject_from_clip
-    from swarmpose.io.mocap import load_clip
+    from swarmpose.io.mocap import load_clip, subject_from_clip
 
     model = load_model(model_name)
     P = random_valid_poses(model, 5)

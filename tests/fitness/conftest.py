@@ -72,9 +72,8 @@ def walk(walk_clip_path: Path, tmp_path_factory) -> WalkFrames:
     truth on the clip-fitted balan31 model."""
     synth = pytest.importorskip("swarmpose.synth")
     from swarmpose.body.ik import fit_ik
-    from swarmpose.body.subject import subject_from_clip
     from swarmpose.features import compute_features
-    from swarmpose.io.mocap import load_clip
+    from swarmpose.io.mocap import load_clip, subject_from_clip
     from swarmpose.io.sequence import open_sequence
 
     out = tmp_path_factory.mktemp("walk") / "seq"

@@ -316,3 +316,20 @@ def test_subject_measurements_round_trip_and_named_errors(tmp_path):
     _edit_meta(path, subject_measurements=None)  # optional: older sequences have none
     with open_sequence(path) as back:
         assert back.subject_measurements is None
+
+
+def test_registered_source_prefixes_open_through_open_sequence(tmp_path, monkeypatch):
+    import swarmpose.io.sequence as sequence_module
+    from swarmpose.io.sequence import register_source_scheme
+
+    monkeypatch.setattr(sequence_module, "_SOURCE_OPENERS", {})
+    with pytest.raises(DataError, match="no reader is registered for 'fake:' sources"):
+        open_sequence("fake:/somewhere")
+    path = write_sequence(tmp_path / "seq", _sequence(np.random.default_rng(2), markers=False))
+    asked = []
+    register_source_scheme("fake:", lambda source: asked.append(source) or open_sequence(path))
+    with open_sequence(Path("fake:/somewhere")) as seq:
+        assert seq.n_frames == T
+    assert asked == ["fake:/somewhere"]
+    with pytest.raises(ConfigError, match="a name and a colon"):
+        register_source_scheme("fake", lambda source: None)

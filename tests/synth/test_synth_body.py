@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from swarmpose.body.model import load_model
-from swarmpose.body.subject import subject_from_clip
 from swarmpose.errors import ConfigError
+from swarmpose.io.mocap import subject_from_clip
 from swarmpose.synth.body import BodySettings, ObservationBody, capsule_template, sphere_template
 
 

@@ -1,9 +1,12 @@
-"""Subject measurements from a motion-capture skeleton (limb lengths and offsets of ``balan31``/``full45``).
+"""Subject measurements from a skeleton's rest pose or from joint positions (limb lengths and offsets
+of ``balan31``/``full45``).
 
 As HumanEva's limb lengths come from mocap ([HE] ``ComputeLimbLengths``), ours come from the clip's
-skeleton: the BVH rest pose (all channels zero) gives the joint-to-joint vectors. CMU-style rest
-poses face +Z with +Y up and +X on the subject's left, so a rest vector ``(x, y, z)`` becomes the
-model-frame vector ``(z, x, y)`` (x forward, y left, z up), times the clip's mm-per-unit.
+skeleton: the rest pose (all channels zero) gives the joint-to-joint vectors
+(:func:`subject_from_rest_points`; :func:`swarmpose.io.mocap.subject_from_clip` picks the points of a
+clip). CMU-style rest poses face +Z with +Y up and +X on the subject's left, so a rest vector
+``(x, y, z)`` becomes the model-frame vector ``(z, x, y)`` (x forward, y left, z up), times the
+skeleton's mm-per-unit.
 
 * Limbs (thigh, shank, upper arm, forearm) keep the model's canonical direction (straight down in
   the zero pose) with the measured length.
@@ -25,28 +28,21 @@ model-frame vector ``(z, x, y)`` (x forward, y left, z up), times the clip's mm-
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import Any
+
 import numpy as np
 
 from swarmpose.body.measurements import SubjectMeasurements, measured_cones
 from swarmpose.body.spec import BodySpec, Subject
-from swarmpose.errors import ConfigError
-from swarmpose.io.bvh import BvhClip
-from swarmpose.io.mocap import MocapClip
+from swarmpose.joints import JOINTS15
 
-__all__ = ["rest_positions", "subject_from_clip", "subject_from_joints"]
+__all__ = ["REST_POINTS", "subject_from_rest_points", "subject_from_joints"]
 
-
-def rest_positions(bvh: BvhClip) -> tuple[np.ndarray, np.ndarray]:
-    """Rest-pose joint and end-site positions ``(J, 3)`` in source units (all channels zero)."""
-    J = len(bvh.joints)
-    pos = np.zeros((J, 3))
-    ends = np.full((J, 3), np.nan)
-    for j, joint in enumerate(bvh.joints):
-        base = pos[joint.parent] if joint.parent >= 0 else np.zeros(3)
-        pos[j] = base + np.asarray(joint.offset, dtype=float)
-        if joint.end_site is not None:
-            ends[j] = pos[j] + np.asarray(joint.end_site, dtype=float)
-    return pos, ends
+#: The rest-pose points :func:`subject_from_rest_points` measures: the 15 joints of
+#: :data:`swarmpose.joints.JOINTS15`, the head joint (below ``head_top``), the toes (ball of the foot)
+#: and the hand tips (NaN where a skeleton has none).
+REST_POINTS: tuple[str, ...] = (*JOINTS15, "head", "l_toe", "r_toe", "l_hand_tip", "r_hand_tip")
 
 
 def _model_vec(v: np.ndarray, mm_per_unit: float) -> tuple[float, float, float]:
@@ -76,25 +72,29 @@ def _cones(spec: BodySpec, ratio: float, measurements: SubjectMeasurements | Non
     return cones, note
 
 
-def subject_from_clip(spec: BodySpec, clip: MocapClip, measurements: SubjectMeasurements | None = None) -> Subject:
-    """Measure a subject for ``spec`` (``balan31`` or ``full45`` layout) from a clip's skeleton.
+def subject_from_rest_points(spec: BodySpec, points: Mapping[str, Any], mm_per_unit: float, *, name: str,
+                             source: str, measurements: SubjectMeasurements | None = None) -> Subject:
+    """Measure a subject for ``spec`` (``balan31`` or ``full45`` layout) from a skeleton's rest pose.
 
-    ``measurements`` (optional) size the cones (module docstring).
+    Parameters
+    ----------
+    spec : BodySpec
+    points : mapping of str to array_like, shape (3,)
+        Every name of :data:`REST_POINTS`: rest-pose positions in source units, CMU rest frame
+        (module docstring).
+    mm_per_unit : float
+        Millimetres per source unit.
+    name : str
+        The subject's name.
+    source : str
+        Where the points come from (the subject's ``source`` begins with it).
+    measurements : SubjectMeasurements, optional
+        Size the cones (module docstring).
     """
-    pos, ends = rest_positions(clip.bvh)
-    sm = clip.skeleton_map
-    s = clip.mm_per_unit
-    if sm.style == "swarmpose":  # an exported file: its tips are joints, its End Sites made up
-        ends = pos
-        needed = {"l_foot": "l_toe", "l_hand": "l_hand_tip", "neck_to_head": "head"}
-        missing = [j for o, j in needed.items() if o in spec.default_subject.offsets and j not in clip.joint_names]
-        if missing:
-            raise ConfigError(f"{clip.source_path}: the {spec.name} model needs the joints {', '.join(missing)}, "
-                              "which this exported file has not (export a model that has them, e.g. full45)")
+    s = mm_per_unit
 
-    def p(name: str) -> np.ndarray:
-        j = sm.joint(name)
-        return ends[j] if sm.from_end_site[sm.joint_index.index(j)] and name == "head_top" else pos[j]
+    def p(point: str) -> np.ndarray:
+        return np.asarray(points[point], dtype=np.float64)
 
     def length(a: str, b: str) -> float:
         return float(np.linalg.norm(p(b) - p(a)) * s)
@@ -107,14 +107,12 @@ def subject_from_clip(spec: BodySpec, clip: MocapClip, measurements: SubjectMeas
         offsets[f"{side}_thorax_to_shoulder"] = _model_vec(p(f"{side}_shoulder") - p("thorax"), s)
         offsets[f"{side}_upper_arm"] = (0.0, 0.0, -length(f"{side}_shoulder", f"{side}_elbow"))
         offsets[f"{side}_forearm"] = (0.0, 0.0, -length(f"{side}_elbow", f"{side}_wrist"))
-        toe = getattr(sm, f"{side}_toe")
-        offsets[f"{side}_foot"] = _model_vec(pos[toe] - p(f"{side}_ankle"), s)
-        tip = getattr(sm, f"{side}_hand_tip")
-        hand_len = float(np.linalg.norm(np.nan_to_num(ends[tip] - p(f"{side}_wrist"))) * s)
+        offsets[f"{side}_foot"] = _model_vec(p(f"{side}_toe") - p(f"{side}_ankle"), s)
+        hand_len = float(np.linalg.norm(np.nan_to_num(p(f"{side}_hand_tip") - p(f"{side}_wrist"))) * s)
         offsets[f"{side}_hand"] = (0.0, 0.0, -max(hand_len, 1.0))
     offsets["spine_to_thorax"] = _model_vec(p("thorax") - p("pelvis"), s)
     offsets["neck_to_head_top"] = _model_vec(p("head_top") - p("thorax"), s)
-    head = pos[sm.head]
+    head = p("head")
     offsets["neck_to_head"] = _model_vec(head - p("thorax"), s)
     offsets["head_to_top"] = _model_vec(p("head_top") - head, s)
     ref = spec.default_subject.offsets
@@ -124,7 +122,7 @@ def subject_from_clip(spec: BodySpec, clip: MocapClip, measurements: SubjectMeas
     cones, note = _cones(spec, ratio, measurements)
     offsets["pelvis_to_torso_top"] = _torso_top(offsets, cones)
     offsets = {k: v for k, v in offsets.items() if k in spec.default_subject.offsets}
-    return Subject(name=clip.name, offsets=offsets, cones=cones, source=f"rest pose of {clip.source_path}; {note}")
+    return Subject(name=name, offsets=offsets, cones=cones, source=f"{source}; {note}")
 
 
 def _frames(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
@@ -179,3 +177,12 @@ def subject_from_joints(spec: BodySpec, joints15: np.ndarray, name: str = "subje
     offsets["pelvis_to_torso_top"] = _torso_top(offsets, cones)
     offsets = {k: v for k, v in offsets.items() if k in spec.default_subject.offsets}
     return Subject(name=name, offsets=offsets, cones=cones, source=f"15-joint ground truth ({len(g)} frames); {note}")
+
+
+def __getattr__(name: str) -> Any:
+    # swarmpose.track.tracker still imports subject_from_clip from here; it lives in swarmpose.io.mocap
+    if name == "subject_from_clip":
+        from swarmpose.io.mocap import subject_from_clip
+
+        return subject_from_clip
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

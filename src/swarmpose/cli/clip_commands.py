@@ -143,9 +143,8 @@ def ik(
     from swarmpose.body.model import BodyModel
     from swarmpose.body.priors import HardPriors
     from swarmpose.body.spec import load_spec
-    from swarmpose.body.subject import subject_from_clip
     from swarmpose.errors import ConfigError
-    from swarmpose.io.mocap import load_clip
+    from swarmpose.io.mocap import load_clip, subject_from_clip
     from swarmpose.joints import JOINTS15
 
     if out is not None and names_a_folder(out):  # before the fit, which takes a while

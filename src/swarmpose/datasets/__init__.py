@@ -7,7 +7,8 @@ A dataset source is a string with a prefix:
 * ``leewalk:<folder>[?frames=1-450]`` (:func:`swarmpose.datasets.leewalk.leewalk_sequence`).
 
 :func:`open_dataset_sequence` opens either, or a plain sequence folder, as a lazily read
-:class:`~swarmpose.io.sequence.MultiViewSequence`; :func:`check_dataset` validates a folder.
+:class:`~swarmpose.io.sequence.MultiViewSequence`; :func:`check_dataset` validates a folder. Importing
+this package registers both prefixes with :func:`swarmpose.io.sequence.open_sequence`.
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ from swarmpose.datasets.check import CheckReport, check_dataset
 from swarmpose.datasets.humaneva import humaneva_sequence, open_humaneva, parse_humaneva_spec
 from swarmpose.datasets.leewalk import LeeWalkLayout, leewalk_sequence, open_leewalk
 from swarmpose.errors import DataError, FormatError, ShapeError
-from swarmpose.io.sequence import MultiViewSequence
+from swarmpose.io.sequence import MultiViewSequence, register_source_scheme
 
 __all__ = [
     "DATASET_PREFIXES",
@@ -90,3 +91,7 @@ def open_dataset_sequence(source: str | os.PathLike[str], **options: Any) -> Mul
             error.args = (f"{error.args[0]} (`swarmpose datasets check {folder}` lists every problem of the "
                           "folder)", *error.args[1:])
         raise
+
+
+for _prefix in DATASET_PREFIXES:
+    register_source_scheme(_prefix, open_dataset_sequence)

@@ -29,7 +29,6 @@ from swarmpose.datasets.humaneva import (
     MP_NAMES,
     OFS_UPDATE_SANITY,
     VideoSource,
-    _background_sessions,
     detect_dataset,
     mp_value,
     parse_calibration,
@@ -39,6 +38,7 @@ from swarmpose.datasets.humaneva import (
     read_offsets,
     synchronize,
 )
+from swarmpose.datasets.humaneva.layout import _background_sessions
 from swarmpose.datasets.leewalk import (
     LEEWALK_FRAMES,
     LEEWALK_SIZE,

@@ -43,7 +43,8 @@ import cv2
 import numpy as np
 
 from swarmpose.camera import Camera
-from swarmpose.datasets.humaneva import VideoSource, _number, _read_text, parse_calibration
+from swarmpose.datasets.humaneva import VideoSource, parse_calibration
+from swarmpose.datasets.humaneva.files import _number, _read_text
 from swarmpose.errors import ConfigError, DataError, FormatError, ShapeError
 from swarmpose.io.sequence import MultiViewSequence
 from swarmpose.joints import JOINT_INDEX

@@ -26,6 +26,9 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
+from swarmpose.body.measurements import SubjectMeasurements
+from swarmpose.body.spec import BodySpec, Subject
+from swarmpose.body.subject import subject_from_rest_points
 from swarmpose.errors import ConfigError, FormatError
 from swarmpose.io.bvh import (
     BvhClip,
@@ -50,6 +53,7 @@ __all__ = [
     "world_from_source_matrix",
     "load_clip",
     "clip_from_bvh",
+    "subject_from_clip",
     "resample",
 ]
 
@@ -602,6 +606,39 @@ def load_clip(
         Bad ``fps`` or ``unit_scale``.
     """
     return clip_from_bvh(read_bvh(path), fps=fps, unit_scale=unit_scale, style=style)
+
+
+# ---------------------------------------------------------------------- the subject of a clip
+def subject_from_clip(spec: BodySpec, clip: MocapClip, measurements: SubjectMeasurements | None = None) -> Subject:
+    """Measure a subject for ``spec`` (``balan31`` or ``full45`` layout) from a clip's skeleton.
+
+    The rest pose of ``clip.bvh`` gives the points of :func:`swarmpose.body.subject.subject_from_rest_points`;
+    ``measurements`` (optional) size the cones.
+
+    Raises
+    ------
+    ConfigError
+        A file written by ``swarmpose export`` lacks joints the model needs.
+    """
+    pos, ends = clip.bvh.rest_positions()
+    sm = clip.skeleton_map
+    if sm.style == "swarmpose":  # an exported file: its tips are joints, its End Sites made up
+        ends = pos
+        needed = {"l_foot": "l_toe", "l_hand": "l_hand_tip", "neck_to_head": "head"}
+        missing = [j for o, j in needed.items() if o in spec.default_subject.offsets and j not in clip.joint_names]
+        if missing:
+            raise ConfigError(f"{clip.source_path}: the {spec.name} model needs the joints {', '.join(missing)}, "
+                              "which this exported file has not (export a model that has them, e.g. full45)")
+
+    def point(name: str) -> np.ndarray:
+        j = sm.joint(name)
+        return ends[j] if sm.from_end_site[sm.joint_index.index(j)] and name == "head_top" else pos[j]
+
+    points = {name: point(name) for name in JOINTS15}
+    points.update(head=pos[sm.head], l_toe=pos[sm.l_toe], r_toe=pos[sm.r_toe], l_hand_tip=ends[sm.l_hand_tip],
+                  r_hand_tip=ends[sm.r_hand_tip])
+    return subject_from_rest_points(spec, points, clip.mm_per_unit, name=clip.name,
+                                    source=f"rest pose of {clip.source_path}", measurements=measurements)
 
 
 # ---------------------------------------------------------------------- resampling

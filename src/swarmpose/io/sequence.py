@@ -25,7 +25,7 @@ import os
 import shutil
 import zipfile
 from collections import Counter, deque
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
@@ -50,6 +50,7 @@ __all__ = [
     "MultiViewSequence",
     "SequenceWriter",
     "open_sequence",
+    "register_source_scheme",
     "write_sequence",
 ]
 
@@ -796,6 +797,20 @@ def _check_shape(arr: np.ndarray, shape: tuple[int, ...], dtype: Any, path: Path
     return arr
 
 
+#: Openers of sources that are not folders, by prefix (``"humaneva:"``): see :func:`register_source_scheme`.
+_SOURCE_OPENERS: dict[str, Callable[[str], MultiViewSequence]] = {}
+
+
+def register_source_scheme(prefix: str, opener: Callable[[str], MultiViewSequence]) -> None:
+    """Let :func:`open_sequence` open every source that begins with ``prefix`` as ``opener(source)``.
+
+    The dataset readers (:mod:`swarmpose.datasets`) register ``humaneva:`` and ``leewalk:`` when imported.
+    """
+    if not (isinstance(prefix, str) and len(prefix) > 2 and prefix.endswith(":")):
+        raise ConfigError(f"a source prefix is a name and a colon, such as 'humaneva:'; got {prefix!r}")
+    _SOURCE_OPENERS[prefix] = opener
+
+
 def open_sequence(path: str | os.PathLike[str]) -> MultiViewSequence:
     """Open a sequence folder written by :class:`SequenceWriter` / :func:`write_sequence`.
 
@@ -822,15 +837,20 @@ def open_sequence(path: str | os.PathLike[str]) -> MultiViewSequence:
 
     Notes
     -----
-    ``humaneva:...`` and ``leewalk:...`` dataset specs are opened by the dataset readers
-    (:func:`swarmpose.datasets.open_dataset_sequence`) into the same type, read lazily.
+    A source with a registered prefix (:func:`register_source_scheme`; ``humaneva:...`` and
+    ``leewalk:...`` once :mod:`swarmpose.datasets` is imported) is opened by its reader into the same
+    type, read lazily.
     """
-    if os.fspath(path).startswith(("humaneva:", "leewalk:")):
-        from swarmpose.datasets import open_dataset_sequence
-
-        return open_dataset_sequence(os.fspath(path))
+    source = os.fspath(path)
+    for prefix, opener in _SOURCE_OPENERS.items():
+        if source.startswith(prefix):
+            return opener(source)
     root = Path(path)
     if not root.is_dir():
+        scheme = source.partition(":")[0]
+        if ":" in source and len(scheme) > 1 and scheme.isalnum():
+            raise DataError(f"{root}: no such sequence folder, and no reader is registered for {scheme + ':'!r} "
+                            "sources (the dataset readers register theirs when swarmpose.datasets is imported)")
         raise DataError(f"{root}: no such sequence folder")
     meta_path = root / _META
     if not meta_path.is_file():

@@ -287,8 +287,8 @@ def synthesize(
     if len(fs_frames):
         from swarmpose.body.ik import fit_ik
         from swarmpose.body.model import load_model
-        from swarmpose.body.subject import subject_from_clip
         from swarmpose.fitness import make_fitness
+        from swarmpose.io.mocap import subject_from_clip
 
         base = load_model("balan31")
         model = base.with_subject(subject_from_clip(base.spec, clip, measurements))

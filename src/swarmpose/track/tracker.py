@@ -575,7 +575,7 @@ def run_tracker(
 
 
 def _write_run(run_dir: Path, setup: TrackSetup, result: RunResult, d_per_frame: np.ndarray) -> None:
-    from swarmpose.cli.common import to_jsonable
+    from swarmpose.io.jsonable import to_jsonable
 
     _atomic_savez(run_dir / "track.npz", params=result.params, joints=result.joints, scores=result.scores,
                   evaluations=result.evaluations, seconds=result.seconds, frame_indices=setup.frame_indices,

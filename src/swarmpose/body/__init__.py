@@ -1,0 +1,1 @@
+"""The body model: spec files, subjects and their measurements, kinematics, priors and inverse kinematics."""
