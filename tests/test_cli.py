@@ -3,10 +3,13 @@
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
+import pytest
 from typer.testing import CliRunner
 
 from swarmpose.cli.app import app
@@ -123,16 +126,34 @@ def test_info_and_ik_read_an_exported_file(mocap_dir: Path, tmp_path: Path):
 
 
 def test_usage_errors_under_json_print_one_error_object():
-    """A bad option value or a missing argument (typer's own checks) also gives the error object under --json."""
-    for args, field in ((["compare", "thesis-apf", "--runs", "0"], "--runs"), (["info"], "clip")):
+    """A bad option value, an unknown option or a missing argument (typer's own checks) also gives the error
+    object under --json; the last two keep the usual usage box."""
+    for args, field in ((["compare", "thesis-apf", "--runs", "0"], "--runs"), (["info"], "clip"),
+                        (["compare", "thesis-apf", "--rns", "3"], "--rns")):
         out = subprocess.run([sys.executable, "-m", "swarmpose", *args, "--json"], capture_output=True, text=True,
                              check=False)
         assert out.returncode == 2, out.stderr
         data = json.loads(out.stdout)
         assert data["exit_code"] == 2 and field in data["error"], data
-        assert "Error" in out.stderr  # the usual error box is still shown
+        assert ("Error" in out.stderr) == (field != "--runs")  # the usage box, but for a bad value (one line)
     plain = subprocess.run([sys.executable, "-m", "swarmpose", "info"], capture_output=True, text=True, check=False)
     assert plain.returncode == 2 and plain.stdout == ""
+
+
+def test_a_bad_option_value_is_one_line_naming_the_option():
+    """`--runs 0` printed typer's whole usage box; it is one line naming the option and the value given, exit code
+    2, and under --json the usual error object."""
+    for args, line in ((["track", "x", "--runs", "0"], "error: --runs 0: must be at least 1"),
+                       (["compare", "thesis-apf", "--runs=0"], "error: --runs 0: must be at least 1"),
+                       (["track", "x", "--seed", "-1"], "error: --seed -1: must be at least 0"),
+                       (["track", "x", "--fps", "abc"], "error: --fps abc: not a valid number")):
+        out = subprocess.run([sys.executable, "-m", "swarmpose", *args], capture_output=True, text=True, check=False,
+                             env={**os.environ, "COLUMNS": "80"})
+        assert out.returncode == 2 and out.stdout == "", out
+        assert out.stderr.strip() == line, out.stderr
+        js = subprocess.run([sys.executable, "-m", "swarmpose", *args, "--json"], capture_output=True, text=True,
+                            check=False)
+        assert js.returncode == 2 and json.loads(js.stdout) == {"error": line.removeprefix("error: "), "exit_code": 2}
 
 
 def test_paths_with_brackets_and_file_system_errors_are_reported_as_they_are(mocap_dir: Path, tmp_path: Path):
@@ -266,3 +287,251 @@ def test_ik_fits_the_model_it_is_given(mocap_dir: Path, tmp_path: Path):
     assert floors[str(spec_file)] == floors["balan31"]  # the same tree and cones, read from a file
     bad = runner.invoke(app, ["ik", clip, "--model", "nosuch"])
     assert bad.exit_code == 2 and "balan31" in bad.output and "full45" in bad.output
+
+
+# --------------------------------------------------------------------------- an 80-column terminal
+
+_BOX = "│╭╮╰╯─┃━┏┓┗┛┡┩╇┳┻╋┣┫└┘┌┐├┤┼┬┴"
+
+
+def _flat(text: str) -> str:
+    """The text without the table and panel lines and without whitespace: what rich wrapped over several lines
+    reads as one string again."""
+    import re
+
+    return re.sub(rf"[\s{_BOX}]", "", text)
+
+
+def _commands(cmd, path: list[str]):
+    yield path, cmd
+    for name, sub in getattr(cmd, "commands", {}).items():
+        yield from _commands(sub, [*path, name])
+
+
+def test_every_help_wraps_at_80_columns_and_cuts_nothing():
+    """At 80 columns rich cut `track --help`'s syntax with "…" (`results/<sequence>-…`, `terms=silhouette|ed…`,
+    `constant-velocity[:…`). Every command's help now wraps instead: no "…", every option name whole, every word
+    of every help text there, and the syntax a user types there in one piece."""
+    from swarmpose.cli.app import command
+
+    seen = 0
+    for path, cmd in _commands(command(), []):
+        res = CliRunner().invoke(app, [*path, "--help"], env={"COLUMNS": "80"})
+        assert res.exit_code == 0, (path, res.output)
+        assert "…" not in res.output, (path, [ln for ln in res.output.splitlines() if "…" in ln])
+        assert max(len(ln) for ln in res.output.splitlines()) <= 80, path
+        flat = _flat(res.output)
+        for param in cmd.params:
+            for name in [*getattr(param, "opts", ()), *getattr(param, "secondary_opts", ())]:
+                assert not name.startswith("--") or name in flat, (path, name)
+            words = (getattr(param, "help", None) or "").replace("\\[", "[").split()
+            missing = [w for w in words if _flat(w) not in flat]
+            assert not missing, (path, param.name, missing)
+        seen += 1
+    assert seen >= 14  # the root, every command and the sub-commands of bench and datasets
+    track = _flat(CliRunner().invoke(app, ["track", "--help"], env={"COLUMNS": "80"}).output)
+    for syntax in ("results/<sequence>-<algo>-<fps>fps", "terms=silhouette|edge", "edge_cones=all|torso|torso+upper",
+                   "constant-velocity[:D][@GROUP+...]", "humaneva:PATH/S1/Walking_1[?cams=...]",
+                   "pip install 'swarmpose[torch]'", "SeedSequence([seed, k])"):
+        assert _flat(syntax) in track, syntax
+    synth = _flat(CliRunner().invoke(app, ["synth", "--help"], env={"COLUMNS": "80"}).output)
+    assert "--marker-noise-px" in synth and "material=value[,...]" in synth
+
+
+def test_every_suite_listing_wraps_at_80_columns_and_keeps_the_algorithm_names_whole():
+    """`compare thesis-apf --list` cut `apf-adaptive` to `apf-adap…` at 80 columns."""
+    import re
+
+    from swarmpose.experiments.suites import SUITES, suite
+
+    for name in SUITES:
+        res = CliRunner().invoke(app, ["compare", name, "--list"], env={"COLUMNS": "80"})
+        assert res.exit_code == 0, res.output
+        assert "…" not in res.output, name
+        # the table fits the width; the lines under it are not broken (the terminal wraps them)
+        assert max(len(ln) for ln in res.output.splitlines() if ln[:1] in _BOX) <= 80, name
+        rows = [[c.strip() for c in re.split(rf"[{_BOX}]", ln)[1:-1]] for ln in res.output.splitlines()
+                if ln.startswith("│")]
+        labels = _flat("".join(r[0] for r in rows))  # the entry column read down: a long word may fold there
+        for entry in suite(name):
+            assert any(r[1] == entry.algo for r in rows), (name, entry.algo)  # one cell, never folded
+            assert _flat(entry.label) in labels, entry
+
+
+# --------------------------------------------------------------------------- swarmpose algorithms
+
+
+def test_algorithms_show_the_measured_walk_numbers_and_the_default():
+    """`swarmpose algorithms` had no accuracy or speed and did not say which one `track` runs by default."""
+    import re
+
+    from swarmpose.cli.track_commands import DEFAULT_ALGO
+    from swarmpose.experiments.measured import CLIP, MEASURED
+    from swarmpose.optim.registry import describe
+
+    res = CliRunner().invoke(app, ["algorithms", "--json"])
+    assert res.exit_code == 0, res.output
+    data = json.loads(res.stdout)
+    rows = {r["name"]: r for r in data["algorithms"]}
+    assert list(rows) == [r["name"] for r in describe()] and data["default"] == DEFAULT_ALGO == "sppso"
+    assert [n for n, r in rows.items() if r["default"]] == ["sppso"] and data["walk_clip"] == CLIP
+    assert set(MEASURED) <= set(rows)  # nothing measured for a name the registry does not have
+    for name, r in rows.items():
+        m = MEASURED.get(name)
+        assert r["walk"] == (None if m is None else {"clip": CLIP, **m._asdict()})
+    sppso, dr05, aapso = rows["sppso"]["walk"], rows["apf-dr05"]["walk"], rows["aapso"]["walk"]
+    assert (sppso["d_mean_mm"], sppso["fps"], sppso["frames_per_s"], sppso["runs"]) == (72.4, 20.0, 8.4, 5)
+    assert (dr05["d_mean_mm"], dr05["frames_per_s"]) == (30.6, 2.9) and (aapso["d_mean_mm"], aapso["fps"]) == (14.8, 25)
+    assert sppso["command"].startswith("swarmpose track ") and "--algo sppso --fps 20 --runs 5" in sppso["command"]
+    # the default of `track` is the one marked
+    import inspect
+
+    from swarmpose.cli.track_commands import track
+    assert inspect.signature(track).parameters["algo"].default.default == DEFAULT_ALGO
+    text = CliRunner().invoke(app, ["algorithms"], env={"COLUMNS": "80"}).stdout
+    assert "…" not in text and max(len(ln) for ln in text.splitlines() if ln[:1] in _BOX) <= 80
+    assert "walk D_mean" in " ".join(text.split()) and "frames/s" in text
+    lines = [[c.strip() for c in re.split(rf"[{_BOX}]", ln)[1:-1]] for ln in text.splitlines() if ln.startswith("│")]
+    starts = {cells[0]: i for i, cells in enumerate(lines) if cells[0]}
+    assert set(rows) <= set(starts) and [c for c in (lines[starts["sppso"] + 1][0],) if c] == ["(default)"]
+    for name, r in rows.items():  # D_mean and the rate below it, frames/s, or dashes
+        first, second = lines[starts[name]], lines[starts[name] + 1]
+        m = MEASURED.get(name)
+        if m is None:
+            assert first[3:] == ["–", "–"]
+        else:
+            fps = "–" if m.frames_per_s is None else f"{m.frames_per_s:.1f}"
+            assert first[3:] == [f"{m.d_mean_mm:.1f} mm", fps] and second[3] == f"at {m.fps:g} fps", (name, first)
+        assert first[2] == str(r["evals_per_frame"])
+
+
+def test_every_measured_number_is_in_the_results_page():
+    """The numbers `swarmpose algorithms` shows are the ones docs/results.md reports: each algorithm's D_mean (and
+    frames/s, where measured) on one line or paragraph of the page that names it."""
+    from swarmpose.experiments.measured import MEASURED
+
+    page = Path(__file__).resolve().parents[1] / "docs" / "results.md"
+    text = page.read_text(encoding="utf-8")
+    places = text.splitlines() + [" ".join(p.split()) for p in text.split("\n\n")]
+    for name, m in MEASURED.items():
+        found = [p for p in places if (f"`{name}`" in p or f"--algo {name} " in p) and f"{m.d_mean_mm:.1f} mm" in p
+                 and (m.frames_per_s is None or f"| {m.frames_per_s:.1f} |" in p)]
+        assert found, (name, m)
+
+
+# --------------------------------------------------------------------------- messages
+
+
+@pytest.fixture()
+def small_sequence(tmp_path: Path) -> Path:
+    """A 4-frame sequence folder at 30 fps with one small camera (enough to open; nothing is tracked)."""
+    from swarmpose.camera import Camera
+    from swarmpose.io.sequence import SequenceWriter
+
+    cam = Camera.look_at("C1", eye=(4000.0, 0.0, 1500.0), target=(0.0, 0.0, 900.0), f=60.0, width=64, height=48)
+    w = SequenceWriter(tmp_path / "seq", [cam], 30.0, 4, streams=("image",))
+    for k in range(4):
+        w.write_frame(k, image=np.full((1, 48, 64), 100, np.uint8))
+    return w.finish(gt_joints=np.zeros((4, 15, 3)), frame_times=np.arange(4) / 30.0)
+
+
+def _track_error(args: list[str], out: Path) -> tuple[str, str]:
+    res = CliRunner().invoke(app, ["track", *args, "--out", str(out), "--json"], env={"COLUMNS": "300"})
+    assert res.exit_code == 2, res.output
+    assert not out.exists()
+    return json.loads(res.stdout)["error"], res.stderr
+
+
+def test_fps_errors_name_the_option(small_sequence: Path, tmp_path: Path):
+    """`--fps 0` and a rate above the sequence's said "fps must be positive" / "fps must be in (0, 30.0]": the
+    option is named, and the sequence's rate with the rates it can be tracked at."""
+    for fps, message in (("0", "--fps: 0 is not a tracking rate; give one above 0"),
+                         ("-5", "--fps: -5 is not a tracking rate"),
+                         ("60", "--fps: 60 is above the sequence's 30 fps (tracking takes the sequence's frames and "
+                                "makes no new ones: 30, 15, 10, ...)")):
+        error, stderr = _track_error([str(small_sequence), "--fps", fps], tmp_path / "out")
+        assert error.startswith(message), error
+        assert f"error: {message}" in stderr
+
+
+def test_fps_above_a_clips_synthesis_rate_is_refused_before_it_is_synthesised(walk_clip_path: Path, tmp_path: Path,
+                                                                             monkeypatch):
+    import importlib
+
+    synthesize = importlib.import_module("swarmpose.synth.synthesize")  # the package names a function so too
+
+    def no_synthesis(*args, **kwargs):
+        raise AssertionError("synthesised before --fps was checked")
+
+    monkeypatch.setattr(synthesize, "cached_sequence", no_synthesis)
+    monkeypatch.setattr("swarmpose.cli.track_commands.synthesis_rate", lambda: 60.0)
+    error, _ = _track_error([str(walk_clip_path), "--fps", "120"], tmp_path / "out")
+    assert error.startswith("--fps: 120 is above the sequence's 60 fps (cmu_16_16_walk.bvh is synthesised at that "
+                            "rate"), error
+    res = CliRunner().invoke(app, ["demo", "--clip", str(walk_clip_path), "--fps", "120", "--out",
+                                   str(tmp_path / "demo"), "--json"])
+    assert res.exit_code == 2 and json.loads(res.stdout)["error"].startswith("--fps: 120 is above the sequence's 60")
+
+
+def test_the_synthesis_rate_is_the_one_bvh_sources_are_synthesised_at():
+    import inspect
+
+    from swarmpose.cli.track_commands import synthesis_rate
+    from swarmpose.synth.synthesize import cached_sequence
+
+    assert synthesis_rate() == inspect.signature(cached_sequence).parameters["fps"].default == 60.0
+
+
+def test_ctrl_c_says_what_was_saved(small_sequence: Path, tmp_path: Path, monkeypatch):
+    """Ctrl-C said "the frames tracked so far are saved: run ... --resume" even when nothing was saved; now it says
+    how many frames are saved, or that none is."""
+    import swarmpose.track.runner as runner_module
+
+    saved = {"frames": 0}
+
+    def interrupted(sequence, config, runs, out_dir, **kwargs):
+        run_dir = Path(out_dir) / "run_000"
+        run_dir.mkdir(parents=True, exist_ok=True)
+        if saved["frames"]:
+            np.savez(run_dir / "progress.npz", done=saved["frames"], params=np.zeros((3, 2)))
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(runner_module, "track_runs", interrupted)
+    out = tmp_path / "res"
+    res = CliRunner().invoke(app, ["track", str(small_sequence), "--out", str(out), "--json"], env={"COLUMNS": "300"})
+    assert res.exit_code == 130
+    message = json.loads(res.stdout)["error"]
+    assert message.startswith("interrupted before any frame was saved: nothing to resume") and "--resume" not in message
+    saved["frames"] = 3
+    res = CliRunner().invoke(app, ["track", str(small_sequence), "--out", str(out), "--json"], env={"COLUMNS": "300"})
+    assert res.exit_code == 130
+    assert json.loads(res.stdout)["error"] == (f"interrupted; 3 frames tracked so far are saved in {out}: run the same "
+                                               "command with --resume to continue")
+    assert "3 frames tracked so far are saved" in res.stderr
+
+    def synthesising(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(runner_module, "resolve_sequence", synthesising)  # Ctrl-C while a clip is synthesised
+    res = CliRunner().invoke(app, ["track", str(small_sequence), "--json"])
+    assert res.exit_code == 130 and "nothing to resume" in json.loads(res.stdout)["error"]
+
+
+def test_ctrl_c_in_compare_says_what_was_saved(small_sequence: Path, tmp_path: Path, monkeypatch):
+    import swarmpose.experiments.run as run_module
+
+    def interrupted(suite, seqs, out, **kwargs):
+        if kwargs["resume"]:
+            run_dir = Path(out) / "seq" / "sppso_20fps" / "run_001"
+            run_dir.mkdir(parents=True)
+            np.savez(run_dir / "progress.npz", done=1)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(run_module, "run_suite", interrupted)
+    out = tmp_path / "cmp"
+    args = ["compare", "thesis-fitness", "--clip", str(small_sequence), "--out", str(out), "--json"]
+    res = CliRunner().invoke(app, args)
+    assert res.exit_code == 130 and json.loads(res.stdout)["error"].startswith("interrupted before any frame was saved")
+    res = CliRunner().invoke(app, [*args, "--resume"])
+    assert json.loads(res.stdout)["error"] == (f"interrupted; 1 frame tracked so far is saved in {out}: run the same "
+                                               "command with --resume to continue")

@@ -193,3 +193,31 @@ def test_report_full_views_draws_whole_views(fake_results, tmp_path: Path):
         with Image.open(json.loads(out.stdout)["overlays"][0]) as im:
             widths[bool(flag)] = im.size[0]
     assert widths[True] == 3 * 240 + 2 * 4 and widths[False] < widths[True]
+
+
+def test_report_on_a_file_says_it_is_a_file(fake_results, tmp_path: Path):
+    summary = fake_results[0] / "summary.json"
+    res = CliRunner().invoke(app, ["report", str(summary), "--json"])
+    assert res.exit_code == 2
+    message = json.loads(res.stdout)["error"]
+    assert message == f"{summary} is a file, not a results folder (its folder {fake_results[0]} is one)"
+    assert "no such results folder" not in res.stderr and "is a file, not a results folder" in res.stderr
+
+
+def test_report_mp4_without_h264_notes_it_in_the_output_and_json(fake_results, tmp_path: Path, monkeypatch):
+    import pytest
+
+    import swarmpose.report as report
+    from swarmpose.report.overlay import video_backends
+
+    if not video_backends()["mp4-opencv"]:
+        pytest.skip("no OpenCV FFmpeg here")
+    monkeypatch.setattr(report, "mp4_is_h264", lambda: False)
+    res = _copy(fake_results[0], tmp_path)
+    out = CliRunner().invoke(app, ["report", str(res), "--frames", "0", "--video", "--format", "mp4", "--json"])
+    assert out.exit_code == 0, out.output
+    (note,) = json.loads(out.stdout)["notes"]
+    assert "MPEG-4 Part 2" in note and "pip install 'swarmpose[video]'" in note
+    plain = CliRunner().invoke(app, ["report", str(res), "--frames", "0", "--video", "--format", "mp4"],
+                               env={"COLUMNS": "300"})
+    assert plain.exit_code == 0 and f"note: {note}" in plain.stderr and "overlay_run000.mp4" in plain.stdout

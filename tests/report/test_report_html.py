@@ -61,3 +61,26 @@ def test_write_html_names_the_page_after_the_markdown(tmp_path: Path):
     assert out == tmp_path / "summary.html"
     page = out.read_text(encoding="utf-8")
     assert page.startswith("<!DOCTYPE html>") and "<title>Tracking report: demo</title>" in page
+
+
+def test_a_linked_local_video_is_embedded_up_to_the_size_limit(tmp_path: Path, monkeypatch):
+    """The overlay video is part of the one file to send: an MP4 or WebM link becomes a <video> player and a GIF
+    link an image, each a data: URI of the file's bytes; above MAX_VIDEO_EMBED_BYTES, a remote or a missing file
+    the link stays."""
+    import swarmpose.report.html as page_html
+
+    mp4 = tmp_path / "overlay_run000.mp4"
+    mp4.write_bytes(b"\x00\x00\x00\x18ftypisom" + bytes(range(256)))
+    gif = tmp_path / "overlay_run001.gif"
+    gif.write_bytes(b"GIF89a" + bytes(300))
+    text = ("Video of every frame: [overlay_run000.mp4](overlay_run000.mp4)\n\n[run 1](overlay_run001.gif)\n\n"
+            "[web](https://example.org/v.mp4) [gone](missing.mp4)\n")
+    page = markdown_to_html(text, base=tmp_path)
+    assert _uris(page) == [("video/mp4", mp4.read_bytes()), ("image/gif", gif.read_bytes())]
+    assert re.search(r'<video controls[^>]* src="data:video/mp4;base64,[^"]+">overlay_run000.mp4</video>', page)
+    assert re.search(r'<img src="data:image/gif;base64,[^"]+" alt="run 1"', page)
+    assert 'href="overlay_run000.mp4"' not in page and 'href="overlay_run001.gif"' not in page
+    assert 'href="https://example.org/v.mp4"' in page and 'href="missing.mp4"' in page
+    monkeypatch.setattr(page_html, "MAX_VIDEO_EMBED_BYTES", 300)  # the GIF (306 bytes) is over, the MP4 not
+    page = markdown_to_html(text, base=tmp_path)
+    assert _uris(page) == [("video/mp4", mp4.read_bytes())] and 'href="overlay_run001.gif"' in page

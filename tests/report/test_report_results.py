@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import shutil
 from pathlib import Path
 
@@ -33,6 +34,17 @@ def test_missing_folder_and_config_are_named(tmp_path: Path):
         load_results(tmp_path / "nope")
     with pytest.raises(DataError, match=r"config\.json not found: is this a swarmpose results folder\?"):
         load_results(tmp_path)
+
+
+def test_a_file_is_named_a_file_not_a_missing_folder(fake_results, tmp_path: Path):
+    summary = fake_results[0] / "summary.json"
+    with pytest.raises(DataError, match=rf"^{re.escape(str(summary))} is a file, not a results folder \(its folder "
+                                        rf"{re.escape(str(fake_results[0]))} is one\)$"):
+        load_results(summary)
+    other = tmp_path / "notes.txt"
+    other.write_text("x")
+    with pytest.raises(DataError, match="notes.txt is a file, not a results folder .give the folder"):
+        load_results(other)
 
 
 def test_no_finished_run(tmp_path: Path):

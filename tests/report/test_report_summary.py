@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import base64
 import json
 import shutil
 from pathlib import Path
@@ -13,6 +14,7 @@ from swarmpose.errors import DataError
 from swarmpose.joints import JOINTS15
 from swarmpose.metrics import track_errors
 from swarmpose.report import load_results, make_report, write_summary
+from swarmpose.report.overlay import video_backends
 
 
 @pytest.fixture()
@@ -46,31 +48,64 @@ def test_make_report_writes_everything(results_copy: Path):
             "the run's worst frame.*") in md
     assert md.count("the run's worst frame") == 1
     assert "](overlay_run000.gif)" in md
-    # the page: every figure and overlay embedded, the video linked beside it
+    # the page: every figure, overlay and the video embedded: the one file to send
     assert paths.html == rep / "summary.html"
     page = paths.html.read_text()
-    assert page.count('<img src="data:image/') == len(paths.figures) + len(paths.overlays)
-    assert 'href="overlay_run000.gif"' in page and "<h2>Error per joint</h2>" in page
+    assert page.count('<img src="data:image/') == len(paths.figures) + len(paths.overlays) + 1
+    gif = base64.b64encode(paths.video.read_bytes()).decode("ascii")
+    assert f'<img src="data:image/gif;base64,{gif}"' in page
+    assert 'href="overlay_run000.gif"' not in page and "<h2>Error per joint</h2>" in page
 
 
-def test_a_second_report_in_the_same_folder_leaves_no_stale_overlays(results_copy: Path):
-    first = make_report(results_copy, overlay_frames=4)
-    other = results_copy / "report" / "overlays" / "notes.txt"
-    other.write_text("mine")
-    second = make_report(results_copy, overlay_frames=1, run=1)
-    assert len(first.overlays) == 4 and len(second.overlays) == 1
-    assert sorted((results_copy / "report" / "overlays").glob("*.png")) == second.overlays
-    assert other.read_text() == "mine"  # only the report's own pictures are replaced
-
-
-def test_a_new_video_replaces_the_previous_reports_video(results_copy: Path):
+def test_a_second_report_keeps_what_it_does_not_replace(results_copy: Path):
+    """A report into a folder with an earlier one overwrites only the files it writes again: the first report's
+    overlays of other frames or another run, and its video, stay; summary.md names this report's."""
     rep = results_copy / "report"
-    first = make_report(results_copy, overlay_frames=0, video=True)
-    assert first.video == rep / "overlay_run000.gif"
-    make_report(results_copy, overlay_frames=0)  # no --video: the video made earlier stays
-    assert first.video.is_file()
-    second = make_report(results_copy, overlay_frames=0, video=True, run=1)
-    assert sorted(rep.glob("overlay_run*")) == [second.video] == [rep / "overlay_run001.gif"]
+    first = make_report(results_copy, overlay_frames=4, video=True)
+    other = rep / "overlays" / "notes.txt"
+    other.write_text("mine")
+    kept = {p: p.read_bytes() for p in [*first.overlays, first.video]}
+    second = make_report(results_copy, overlay_frames=1, run=1, video=True)
+    assert len(first.overlays) == 4 and len(second.overlays) == 1 and second.video == rep / "overlay_run001.gif"
+    assert all(p.read_bytes() == data for p, data in kept.items())  # still there, untouched
+    assert sorted((rep / "overlays").glob("*.png")) == sorted([*first.overlays, *second.overlays])
+    assert sorted(rep.glob("overlay_run*")) == [first.video, second.video] and other.read_text() == "mine"
+    md = second.summary.read_text()
+    assert all(p.name in md for p in [*second.overlays, second.video])
+    assert not any(p.name in md for p in [*first.overlays, first.video])
+    again = make_report(results_copy, overlay_frames=1, run=1)  # the same files again: replaced, nothing added
+    assert again.overlays == second.overlays and sorted(rep.glob("overlay_run*")) == [first.video, second.video]
+
+
+@pytest.mark.skipif(not video_backends()["mp4-opencv"], reason="no OpenCV FFmpeg here")
+def test_an_mp4_without_h264_says_so(results_copy: Path, monkeypatch):
+    """Without imageio-ffmpeg an MP4 is MPEG-4 Part 2, which most browsers do not play: a note says so and how to
+    get H.264; with it, no note. The page embeds the MP4 in a video player."""
+    import swarmpose.report as report
+
+    monkeypatch.setattr(report, "mp4_is_h264", lambda: False)
+    paths = make_report(results_copy, overlay_frames=0, video=True, video_format="mp4")
+    assert paths.video == results_copy / "report" / "overlay_run000.mp4"
+    (note,) = paths.notes
+    assert "MPEG-4 Part 2" in note and "browsers" in note and "pip install 'swarmpose[video]'" in note
+    assert paths.to_dict()["notes"] == [note] and f"> Note: {note}" in paths.summary.read_text()
+    page = paths.html.read_text()
+    mp4 = base64.b64encode(paths.video.read_bytes()).decode("ascii")
+    assert f'src="data:video/mp4;base64,{mp4}"' in page and "<video controls" in page
+    monkeypatch.setattr(report, "mp4_is_h264", lambda: True)
+    assert make_report(results_copy, overlay_frames=0, video=True, video_format="mp4").notes == []
+
+
+def test_a_video_too_large_to_embed_is_linked_with_a_note(results_copy: Path, monkeypatch):
+    import swarmpose.report.html as page_html
+
+    monkeypatch.setattr(page_html, "MAX_VIDEO_EMBED_BYTES", 1000)
+    paths = make_report(results_copy, overlay_frames=0, video=True)
+    assert paths.video.stat().st_size > 1000
+    (note,) = paths.notes
+    assert note.startswith("overlay_run000.gif is ") and "summary.html embeds: the page links it" in note
+    page = paths.html.read_text()
+    assert 'href="overlay_run000.gif"' in page and "data:image/gif" not in page
 
 
 def test_a_report_for_a_missing_run_leaves_the_previous_report_alone(results_copy: Path):

@@ -85,7 +85,7 @@ def fitness(
         console.print(f"[bold]torch[/bold] {m['torch']} on {m['torch_device']}", highlight=False)
     table = Table(title=f"fitness evaluations/s ({views} views, silhouette + edge, incl. kinematics)")
     for col in ("backend", "resolution", "batch", "evals/s", "x reference", "frames/s at 1000 evals"):
-        table.add_column(col, justify="right" if col != "backend" else "left")
+        table.add_column(col, justify="right" if col != "backend" else "left", overflow="fold")
     for r in res["rows"]:
         ratio = r["ratio_to_reference"]
         table.add_row(r["backend"], f"{r['width']}x{r['height']}", str(r["batch"]), f"{r['evals_per_s']:,.0f}",

@@ -16,8 +16,10 @@ from rich.console import Console
 from rich.markup import escape
 
 from swarmpose.errors import SwarmposeError
+from swarmpose.io.jsonable import to_jsonable
 
-__all__ = ["console", "err_console", "escape", "print_json", "fail_on_user_error", "to_jsonable", "count"]
+__all__ = ["Interrupted", "console", "err_console", "escape", "print_json", "fail_on_user_error", "to_jsonable", "count",
+           "interrupted_tracking", "saved_frames"]
 
 # soft_wrap: lines are not cut at 80 columns when stdout is a file or a pipe (tables still fit the width)
 console = Console(soft_wrap=True)
@@ -29,23 +31,6 @@ F = TypeVar("F", bound=Callable[..., Any])
 def count(n: int, word: str) -> str:
     """``1 frame``, ``2 frames``."""
     return f"{n} {word}{'' if n == 1 else 's'}"
-
-
-def to_jsonable(obj: Any) -> Any:
-    """Numpy scalars/arrays and paths to plain JSON types (NaN/inf become null)."""
-    if isinstance(obj, dict):
-        return {str(k): to_jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [to_jsonable(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return to_jsonable(obj.tolist())
-    if isinstance(obj, np.generic):
-        obj = obj.item()
-    if isinstance(obj, float) and not np.isfinite(obj):
-        return None
-    if isinstance(obj, str | int | float | bool) or obj is None:
-        return obj
-    return str(obj)
 
 
 def print_json(data: Any) -> None:
@@ -64,6 +49,39 @@ def _os_message(exc: OSError) -> str:
     return f"{exc.filename}: {exc.strerror}{hint}"
 
 
+class Interrupted(KeyboardInterrupt):
+    """Ctrl-C, with what the command had saved by then in ``message`` (:func:`interrupted_tracking`)."""
+
+    def __init__(self, message: str) -> None:
+        super().__init__(message)
+        self.message = message
+
+
+def saved_frames(folder: Path) -> int:
+    """Frames tracked and saved under ``folder`` (a `track` results folder, or a `compare` folder with one
+    results folder per clip and entry): the sum of every run's ``progress.npz`` count, which a run replaces
+    after each frame and keeps when it finishes; 0 when there is none."""
+    total = 0
+    for progress in sorted(Path(folder).glob("**/run_*/progress.npz")):
+        try:
+            with np.load(progress) as z:
+                total += max(0, int(z["done"]))
+        except (OSError, ValueError, KeyError):  # one being replaced as the run stopped: a resume reports it
+            continue
+    return total
+
+
+def interrupted_tracking(folder: Path | None) -> Interrupted:
+    """The Ctrl-C message of `track` and `compare` tracking into ``folder`` (None: not chosen yet, as while a
+    clip is synthesised): the frames saved there and how to go on from them, or that none was saved."""
+    frames = saved_frames(folder) if folder is not None else 0
+    if frames:
+        return Interrupted(f"interrupted; {count(frames, 'frame')} tracked so far {'is' if frames == 1 else 'are'} "
+                           f"saved in {folder}: run the same command with --resume to continue")
+    return Interrupted("interrupted before any frame was saved: nothing to resume (run the same command to start "
+                       "again)")
+
+
 def fail_on_user_error(func: F) -> F:
     """Turn swarmpose's own errors (bad files, bad options) and file-system errors (an output path under a file,
     no permission) into a one-line message and exit code 2.
@@ -78,9 +96,12 @@ def fail_on_user_error(func: F) -> F:
             return func(*args, **kwargs)
         except BrokenPipeError:  # stdout closed by the reader (`| head`): nothing to report to
             raise
-        except KeyboardInterrupt:
-            message = ("interrupted; the frames tracked so far are saved: run the same command with --resume "
-                       "to continue" if "resume" in kwargs else "interrupted")
+        except KeyboardInterrupt as exc:
+            if isinstance(exc, Interrupted):  # the command said what it had saved (`track`, `compare`)
+                message = exc.message
+            else:
+                message = ("interrupted; the frames tracked so far are saved: run the same command with --resume "
+                           "to continue" if "resume" in kwargs else "interrupted")
             err_console.print(f"[bold red]{escape(message)}[/bold red]", highlight=False)
             if kwargs.get("json_out") is True:
                 print_json({"error": message, "exit_code": 130})

@@ -7,7 +7,7 @@ from pathlib import Path
 import typer
 
 from swarmpose.cli.app import app
-from swarmpose.cli.common import console, fail_on_user_error, print_json
+from swarmpose.cli.common import console, fail_on_user_error, interrupted_tracking, print_json
 from swarmpose.cli.demo import DEFAULT_CLIP
 from swarmpose.cli.track_commands import run_setting_parts
 
@@ -72,13 +72,16 @@ def compare(
     if suite is None:
         raise ConfigError(f"name a suite: {', '.join(SUITES)} (`swarmpose compare --list` shows their entries)")
     suite_configs(suite, seed=seed, downsample=downsample, max_frames=max_frames)  # an unknown suite or a bad setting fails before any clip is synthesised
-    client = connect_scheduler(scheduler) if scheduler else None  # a wrong address fails before any synthesis
-    progress = not (json_out or no_progress)
-    seqs = [resolve_sequence(s, progress=progress) for s in (sources or [str(DEFAULT_CLIP)])]
     out = (out or Path("results") / "compare" / default_comparison_name(suite, seed=seed, downsample=downsample,
                                                                        max_frames=max_frames)).absolute()
-    report = run_suite(suite, seqs, out, runs=runs, seed=seed, workers=workers, scheduler=client,
-                       resume=resume, downsample=downsample, progress=progress, max_frames=max_frames)
+    progress = not (json_out or no_progress)
+    try:  # Ctrl-C from here on says what was saved: nothing while a clip is synthesised, then the frames
+        client = connect_scheduler(scheduler) if scheduler else None  # a wrong address fails before any synthesis
+        seqs = [resolve_sequence(s, progress=progress) for s in (sources or [str(DEFAULT_CLIP)])]
+        report = run_suite(suite, seqs, out, runs=runs, seed=seed, workers=workers, scheduler=client,
+                           resume=resume, downsample=downsample, progress=progress, max_frames=max_frames)
+    except KeyboardInterrupt:
+        raise interrupted_tracking(out) from None
     if json_out:
         print_json(report)
         return
@@ -114,22 +117,51 @@ def _list_suites(names: list[str], *, seed: int, downsample: int, runs: int, n_c
         table = Table(title=f"{item['suite']}: {len(item['entries'])} entries x {n_clips} "
                             f"clip{'' if n_clips == 1 else 's'} x {runs} run{'' if runs == 1 else 's'} = "
                             f"{item['jobs']} tracking jobs", title_justify="left")
-        cols = ["entry", "algorithm", "fps", "variant", "fitness", "evals/frame"]
-        cols += ["frames"] if max_frames is not None else []
         refs = list(dict.fromkeys(e["reference"] for e in item["entries"]))
         # one reference for the suite: said under the table; one paper section: said there, with each entry's
-        # figures in a column; several papers: each entry's reference in the column
+        # figures in a column; several papers: each entry's reference in the column, less the parts that
+        # every entry shares (said under the table)
         bases = {r.split(" (", 1)[0] for r in refs}
         footer = refs[0] if len(refs) == 1 else (bases.pop() if len(bases) == 1 else None)
-        cols += [] if len(refs) == 1 else ["in the paper"]
-        for col in cols:
-            table.add_column(col, justify="right" if col in ("fps", "evals/frame", "frames") else "left")
+        shared = ("", "") if footer is not None else _shared_parts(refs)
+        if footer is None and any(shared):
+            footer = ", ".join(x for x in shared if x)
+        rows = []
         for e in item["entries"]:
-            fitness = e["fitness"] + (f" ({e['fitness_options']})" if e["fitness_options"] else "")
-            row = [e["label"], e["algo"], f"{e['fps']:g}", e["variant"] or "-", fitness, str(e["evals_per_frame"])]
-            row += [str(e["max_frames"])] if max_frames is not None else []
-            table.add_row(*row, *([] if len(refs) == 1 else [_in_paper(e["reference"], footer)]))
+            row = {"entry": e["label"], "algorithm": e["algo"], "fps": f"{e['fps']:g}", "variant": e["variant"] or "-",
+                   "fitness": e["fitness"] + (f" ({e['fitness_options']})" if e["fitness_options"] else ""),
+                   "evals per frame": str(e["evals_per_frame"])}
+            row.update({"frames": str(e["max_frames"])} if max_frames is not None else {})
+            row.update({"in the paper": _in_paper(e["reference"], footer, shared)} if len(refs) > 1 else {})
+            rows.append(row)
+        # a setting every entry shares is said once under the table: the columns left have room at 80 columns
+        same = {col: rows[0][col] for col in ("variant", "fitness", "evals per frame", "frames")
+                if col in rows[0] and len(rows) > 1 and len({r[col] for r in rows}) == 1}
+        cols = [col for col in (rows[0] if rows else {}) if col not in same]
+        narrow = {col: 6 for col in ("evals per frame", "frames")}  # numbers; the header wraps above them
+        # each column as wide as its longest cell, then, while the table is wider than the terminal, the widest
+        # text column gives way, first down to its longest word (the cells wrap), then further (a word folds):
+        # nothing is cut, and an algorithm's name and the numbers are never broken
+        width = {col: narrow.get(col) or max(len(r[col]) for r in [{col: col}, *rows]) for col in cols}
+        word = {col: max(len(w) for r in [{col: col}, *rows] for w in r[col].split() or [""]) for col in cols}
+        give = [col for col in cols if col not in ("algorithm", "fps", *narrow)]
+        while give and sum(width.values()) + 3 * len(width) + 1 > console.width:
+            wide = [c for c in give if width[c] > word[c]] or [c for c in give if width[c] > 4]
+            if not wide:
+                break
+            width[max(wide, key=width.get)] -= 1
+        for col in cols:
+            table.add_column(col, justify="right" if col in ("fps", *narrow) else "left", overflow="fold",
+                             width=width[col])
+        for r in rows:
+            table.add_row(*(v for col, v in r.items() if col not in same))
         console.print(table)
+        if same:
+            said = {"variant": lambda v: "no variant" if v == "-" else f"variant {v}",
+                    "fitness": lambda v: f"fitness {v}", "evals per frame": lambda v: f"{v} evaluations per frame",
+                    "frames": lambda v: f"{v} frames"}
+            console.print(f"  every entry: {', '.join(said[col](v) for col, v in same.items())}", markup=False,
+                          highlight=False)
         if footer:
             console.print(f"  paper: {footer}", markup=False, highlight=False)
         if max_frames is not None:
@@ -138,9 +170,35 @@ def _list_suites(names: list[str], *, seed: int, downsample: int, runs: int, n_c
                           markup=False, highlight=False)
 
 
-def _in_paper(ref: str, footer: str | None) -> str:
+def _shared_parts(refs: list[str]) -> tuple[str, str]:
+    """The leading and the trailing comma-separated parts that every reference shares (``"Sharifi et al. 2017"``,
+    ``"reprojection fitness (not the paper's)"``), each ``""`` when there is none."""
+    parts = [r.split(", ") for r in refs if r]
+    if len(parts) < 2:
+        return "", ""
+    n = min(len(p) for p in parts) - 1  # each reference keeps a part of its own
+    head = 0
+    while head < n and len({tuple(p[:head + 1]) for p in parts}) == 1:
+        head += 1
+    tail = 0
+    while tail < n - head and len({tuple(p[len(p) - tail - 1:]) for p in parts}) == 1:
+        tail += 1
+    first = parts[0]
+    return ", ".join(first[:head]), ", ".join(first[len(first) - tail:]) if tail else ""
+
+
+def _in_paper(ref: str, footer: str | None, shared: tuple[str, str] = ("", "")) -> str:
     """An entry's cell in the listing's paper column: the part of its reference after the suite's shared
-    section (``Fig. 6.10``), or the whole reference when the suite cites several papers."""
+    section (``Fig. 6.10``), the part between the parts every entry shares (``Table 1 set-up``), or the whole
+    reference when the suite cites several papers."""
+    if not ref:
+        return "-"
+    if any(shared):
+        head, tail = shared
+        parts = ref.split(", ")
+        parts = parts[len(head.split(", ")) if head else 0:]
+        parts = parts[:len(parts) - len(tail.split(", "))] if tail else parts
+        return ", ".join(parts) or "-"
     if footer is None:
-        return ref or "-"
+        return ref
     return ref.split(" (", 1)[1].rstrip(")") if " (" in ref else "-"

@@ -30,6 +30,7 @@ def demo(
     per-joint plot, overlay images, summary.md and summary.html (the page with every image embedded)
     into OUT/report/.
     """
+    from swarmpose.cli.track_commands import check_tracking_rate, is_clip
     from swarmpose.report import make_report
     from swarmpose.report.results import largest_run_maximum
     from swarmpose.track.runner import check_results_folder, resolve_sequence, track_runs
@@ -39,6 +40,7 @@ def demo(
         where = (": the shared data folder (../shared/data/mocap) must sit beside the repository (an install "
                  "outside the repository: pass --clip PATH/cmu_16_16_walk.bvh)" if Path(clip) == DEFAULT_CLIP else "")
         raise FileNotFoundError(f"demo clip {clip} not found{where}")
+    check_tracking_rate(fps, clip if is_clip(clip) else None)  # before the clip is synthesised
     seq = resolve_sequence(clip, progress=not json_out)
     config = TrackConfig(algo=algo, fps=fps, seed=seed)
     summary = _finished(out)

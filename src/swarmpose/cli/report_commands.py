@@ -18,13 +18,16 @@ def report(
     results_dir: Annotated[Path, typer.Argument(help="A results folder written by `swarmpose track`, or a "
                                                      "`swarmpose compare` folder (its figures and page are "
                                                      "redrawn).")],
-    video: Annotated[bool, typer.Option("--video", help="Also write the overlays of every frame as a video.")] = False,
+    video: Annotated[bool, typer.Option("--video", help="Also write the overlays of every frame as a video "
+                                                        "(summary.html embeds it).")] = False,
     frames: Annotated[int, typer.Option("--frames", min=0,
                                         help="Number of overlay images (with the worst frame); 0: none.")] = 4,
     run: Annotated[int, typer.Option("--run", min=0, help="The run drawn in the overlays and the video.")] = 0,
     video_format: Annotated[str | None, typer.Option("--format", help="Video format with --video: gif (default), or "
-                                                                      "mp4 (needs FFmpeg: the 'video' extra, or "
-                                                                      "OpenCV's bundled one).")] = None,
+                                                                      "mp4: H.264 with the 'video' extra (pip "
+                                                                      "install 'swarmpose\\[video]'), else OpenCV's "
+                                                                      "MPEG-4 Part 2, which most browsers do not "
+                                                                      "play.")] = None,
     sequence: Annotated[Path | None, typer.Option("--sequence", help="The tracked sequence folder, if it has "
                                                                      "moved since tracking.")] = None,
     out: Annotated[Path | None, typer.Option("--out", help="Report folder (default RESULTS_DIR/report).")] = None,

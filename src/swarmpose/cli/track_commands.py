@@ -8,10 +8,21 @@ from typing import TYPE_CHECKING
 import typer
 
 from swarmpose.cli.app import app
-from swarmpose.cli.common import console, count, err_console, escape, fail_on_user_error, print_json
+from swarmpose.cli.common import (
+    console,
+    count,
+    err_console,
+    escape,
+    fail_on_user_error,
+    interrupted_tracking,
+    print_json,
+)
 
 if TYPE_CHECKING:
     from swarmpose.track.tracker import TrackConfig
+
+#: What `swarmpose track` runs without --algo (`swarmpose algorithms` marks it).
+DEFAULT_ALGO = "sppso"
 
 
 def run_setting_parts(*, max_frames: int | None, seed: int, downsample: int) -> list[str]:
@@ -37,13 +48,54 @@ def default_results_name(name: str, cfg: TrackConfig) -> str:
     return "-".join(parts)
 
 
+def is_clip(source: str | Path) -> bool:
+    """Whether a tracking source is a ``.bvh`` clip (synthesised into a sequence before it is tracked)."""
+    return Path(source).suffix.lower() == ".bvh"
+
+
+def synthesis_rate() -> float:
+    """The frame rate a ``.bvh`` source is synthesised at before it is tracked (``resolve_sequence``)."""
+    import inspect
+
+    from swarmpose.synth.synthesize import cached_sequence
+
+    return float(inspect.signature(cached_sequence).parameters["fps"].default)
+
+
+def check_tracking_rate(fps: float, source: str | Path | None = None) -> None:
+    """Refuse a ``--fps`` that is not a rate above 0, or that is above the sequence's frame rate (a sequence is
+    subsampled to the tracking rate, never interpolated). ``source``: a ``.bvh`` clip (synthesised at
+    :func:`synthesis_rate`: checked before it is), or a sequence folder or dataset spec as ``resolve_sequence``
+    returns it (opened for its rate); None checks the sign only."""
+    import math
+
+    from swarmpose.errors import ConfigError
+
+    if not (math.isfinite(fps) and fps > 0):
+        raise ConfigError(f"--fps: {fps:g} is not a tracking rate; give one above 0, at most the sequence's "
+                          "frame rate")
+    if source is None:
+        return
+    if is_clip(source):
+        rate, made = synthesis_rate(), f"{Path(source).name} is synthesised at that rate; "
+    else:
+        from swarmpose.io.sequence import open_sequence
+
+        with open_sequence(source) as seq:
+            rate, made = float(seq.frame_rate), ""
+    if fps > rate * (1 + 1e-9):
+        rates = ", ".join(f"{rate / k:g}" for k in (1, 2, 3))
+        raise ConfigError(f"--fps: {fps:g} is above the sequence's {rate:g} fps ({made}tracking takes the "
+                          f"sequence's frames and makes no new ones: {rates}, ...)")
+
+
 @app.command()
 @fail_on_user_error
 def track(
     source: str = typer.Argument(..., help="A sequence folder, a BVH clip (synthesised once into cache/), "
                                            "humaneva:PATH/S1/Walking_1[?cams=...] or leewalk:PATH "
                                            "(docs/datasets.md)."),
-    algo: str = typer.Option("sppso", help="Algorithm name (see `swarmpose algorithms`)."),
+    algo: str = typer.Option(DEFAULT_ALGO, help="Algorithm name (see `swarmpose algorithms`)."),
     fps: float = typer.Option(20.0, help="Tracking frame rate, at most the sequence's: the sequence is subsampled "
                                          "to it (60, 30, 20, 12...); a rate that does not divide the sequence's "
                                          "(25 from 60) tracks the nearest frames."),
@@ -106,6 +158,7 @@ def track(
     from swarmpose.track.runner import connect_scheduler, resolve_sequence, track_runs
     from swarmpose.track.tracker import TrackConfig
 
+    check_tracking_rate(fps, source if is_clip(source) else None)  # a .bvh clip: before it is synthesised
     cfg = TrackConfig(algo=algo, fps=fps, model=model, fitness=fitness, backend=backend,
                       downsample=downsample, seed=seed, fitness_options=fitness_options,
                       feature_options=features, optim_variant=variant, motion=motion,
@@ -117,19 +170,24 @@ def track(
             err_console.print("[yellow]note:[/yellow] PyTorch sees no GPU here: the torch backend runs on the CPU, "
                               "about 50x slower than the default numba backend (it is the GPU path)",
                               highlight=False)
-    client = connect_scheduler(scheduler) if scheduler else None  # a wrong address fails before any synthesis
     progress = not (json_out or no_progress)
-    seq = resolve_sequence(source, progress=progress)
-    if out is None:
-        if isinstance(seq, str):  # a dataset spec such as humaneva:/data/HumanEva/S1/Walking_1
-            from swarmpose.datasets import dataset_sequence_name
+    try:  # Ctrl-C from here on says what was saved: nothing while the clip is synthesised, then the frames
+        client = connect_scheduler(scheduler) if scheduler else None  # a wrong address fails before any synthesis
+        seq = resolve_sequence(source, progress=progress)
+        if not is_clip(source):
+            check_tracking_rate(fps, seq)  # a sequence folder or a dataset's: its own rate
+        if out is None:
+            if isinstance(seq, str):  # a dataset spec such as humaneva:/data/HumanEva/S1/Walking_1
+                from swarmpose.datasets import dataset_sequence_name
 
-            name = dataset_sequence_name(seq)
-        else:
-            name = seq.name
-        out = Path("results") / default_results_name(name, cfg)
-    summary = track_runs(seq, cfg, runs, out, resume=resume, workers=workers, scheduler=client,
-                         progress=progress)
+                name = dataset_sequence_name(seq)
+            else:
+                name = seq.name
+            out = Path("results") / default_results_name(name, cfg)
+        summary = track_runs(seq, cfg, runs, out, resume=resume, workers=workers, scheduler=client,
+                             progress=progress)
+    except KeyboardInterrupt:
+        raise interrupted_tracking(out) from None
     if max_frames is not None and summary["frames"] < max_frames:
         err_console.print(f"[yellow]note:[/yellow] the sequence has {summary['frames']} frames at {fps:g} fps: all "
                           f"were tracked (--max-frames {max_frames} is more)", highlight=False)
@@ -164,8 +222,40 @@ def track(
 
 
 @app.command()
-def algorithms(json_out: bool = typer.Option(False, "--json", help='Print one JSON object {"algorithms": [...]} instead of a table.')) -> None:
-    """List every named algorithm with its fitness evaluations per frame and paper reference."""
-    from swarmpose.optim.cli import algorithms_command
+def algorithms(json_out: bool = typer.Option(False, "--json", help='Print one JSON object {"algorithms": [...]} '
+                                                                   "instead of a table.")) -> None:
+    """List every named algorithm: what it is and tracks, its fitness evaluations per frame, its measured error
+    and speed on the shared walk, and its paper; the default of `track` is marked."""
+    from swarmpose.experiments.measured import CLIP, MEASURED
+    from swarmpose.optim.registry import describe
 
-    algorithms_command(json=json_out)
+    rows = [{**r, "default": r["name"] == DEFAULT_ALGO,
+             "walk": None if r["name"] not in MEASURED else {"clip": CLIP, **MEASURED[r["name"]]._asdict()}}
+            for r in describe()]
+    if json_out:
+        print_json({"algorithms": rows, "default": DEFAULT_ALGO, "walk_clip": CLIP})
+        return
+    from rich.table import Table
+
+    tracks = {"silhouette_edge": "silhouettes + edges (images)", "reprojection": "2D markers (reprojection)"}
+    table = Table(title="swarmpose algorithms (swarmpose track --algo NAME)", show_lines=True)
+    # the numbers' columns as narrow as their numbers, so that an 80-column terminal leaves the text room
+    table.add_column("name", min_width=max(len(r["name"]) for r in rows), overflow="fold")
+    table.add_column("what it is, what it tracks, paper", overflow="fold")
+    table.add_column("evals per frame", justify="right", max_width=6, overflow="fold")
+    table.add_column("walk D_mean", justify="right", max_width=9, overflow="fold")
+    table.add_column("frames/s", justify="right", max_width=8, overflow="fold")
+    for r in rows:
+        walk = r["walk"]
+        what = (f"{escape(r['summary'])}\n[dim]tracks {escape(tracks.get(r['fitness'], r['fitness']))}; "
+                f"{escape(r['reference'])}[/dim]")
+        table.add_row(f"[bold]{escape(r['name'])}[/bold]" + ("\n(default)" if r["default"] else ""), what,
+                      str(r["evals_per_frame"]),
+                      "–" if walk is None else f"{walk['d_mean_mm']:.1f} mm\nat {walk['fps']:g} fps",
+                      "–" if walk is None or walk["frames_per_s"] is None else f"{walk['frames_per_s']:.1f}")
+    console.print(table)
+    runs = sorted({m.runs for m in MEASURED.values()})
+    console.print(f"walk D_mean: the mean 3D joint error on the synthetic walk {CLIP} at the rate shown, over "
+                  f"{' or '.join(map(str, runs))} runs of seed 0; frames/s: per run, two runs at a time on 2 cores; –: not "
+                  "measured. --json gives each one's command; docs/results.md has the spread and the other "
+                  f"clips. (default): what `swarmpose track` runs without --algo.", markup=False, highlight=False)

@@ -35,9 +35,10 @@ from pathlib import Path
 from typing import Any
 
 from swarmpose.errors import DataError
+from swarmpose.report import html as _page
 from swarmpose.report.comparison import write_comparison
 from swarmpose.report.html import write_html
-from swarmpose.report.overlay import overlay_video, overlays, render_overlay
+from swarmpose.report.overlay import mp4_is_h264, overlay_video, overlays, render_overlay
 from swarmpose.report.plots import error_over_time, per_joint_errors
 from swarmpose.report.results import Results, RunData, load_results
 from swarmpose.report.summary import write_summary
@@ -76,7 +77,8 @@ class ReportPaths:
     video : pathlib.Path or None
         The overlay video, if asked for.
     notes : list of str
-        Parts that were skipped and why.
+        Parts that were skipped and why, and what to know about the video (an MP4 most browsers do not play,
+        one too large for summary.html to embed).
     """
 
     summary: Path
@@ -113,10 +115,13 @@ def make_report(
     results_dir : path-like or Results
         A folder written by ``swarmpose track``.
     video : bool, default False
-        Also write the overlays of every frame as a video.
+        Also write the overlays of every frame as a video; summary.html embeds it (up to
+        :data:`swarmpose.report.html.MAX_VIDEO_EMBED_BYTES`, else links it, with a note). An MP4 without
+        imageio-ffmpeg is MPEG-4 Part 2, which most browsers do not play: a note says so.
     overlay_frames : int, default 4
-        Number of overlay PNGs (spread over the sequence, with the worst frame); 0 for none. Overlay
-        PNGs of an earlier report in ``out_dir/overlays`` are removed first.
+        Number of overlay PNGs (spread over the sequence, with the worst frame); 0 for none. Files of an
+        earlier report in ``out_dir`` are replaced only by files of the same name (another run's overlays or
+        video stay; summary.md names this report's).
     run : int, default 0
         The run drawn in the overlays and the video.
     out_dir : path-like, optional
@@ -160,10 +165,8 @@ def make_report(
     notes: list[str] = []
     over: list[Path] = []
     vid: Path | None = None
-    # an earlier report's overlays in this folder (other frames, another run) would sit beside the new ones (or
-    # none) that summary.md shows; they are redrawn from the results whenever wanted
-    for old in (out / "overlays").glob("overlay_run*_frame*.png"):
-        old.unlink()
+    # a report writes its files over those of an earlier one of the same name and leaves the others (another
+    # run's overlays, a GIF beside a new MP4) as they are: summary.md and summary.html show this report's
     if images_missing is not None:
         notes.append(f"overlays skipped: {images_missing}")
     elif overlay_frames > 0 or video:
@@ -172,11 +175,14 @@ def make_report(
         if video:
             vid = overlay_video(res, out / f"overlay_run{run:03d}.{video_format}", run=run,
                                 fmt=video_format, scale=video_scale, sequence=sequence, crop=crop)
-            # an earlier report's video of another run or format would pass for this one's; a report
-            # without --video keeps it (it took minutes to make)
-            for old in [*out.glob("overlay_run*.gif"), *out.glob("overlay_run*.mp4")]:
-                if old.resolve() != vid.resolve():
-                    old.unlink()
+            if vid.suffix.lower() == ".mp4" and not mp4_is_h264():
+                notes.append(f"{vid.name} is MPEG-4 Part 2 (OpenCV's FFmpeg; imageio-ffmpeg is not installed), "
+                             "which most browsers do not play: for H.264 install the video extra, pip install "
+                             "'swarmpose[video]', and make the report again, or make a GIF")
+            size, limit = vid.stat().st_size, _page.MAX_VIDEO_EMBED_BYTES
+            if size > limit:
+                notes.append(f"{vid.name} is {size / 1e6:.1f} MB, more than the {limit / 1e6:.1f} MB that "
+                             "summary.html embeds: the page links it, so send the video with the page")
     summary = write_summary(res, out=out / "summary.md", figures=figures, overlays=over, video=vid, notes=notes)
     page = write_html(summary)
     return ReportPaths(summary=summary, html=page, figures=figures, overlays=over, video=vid, notes=notes)

@@ -32,7 +32,7 @@ from swarmpose.report._style import DETECTION_RGB, GT_RGB, SIDE_RGB, bgr
 from swarmpose.report.results import Results, as_results
 
 __all__ = ["render_overlay", "overlays", "overlay_video", "choose_frames", "crop_boxes", "follow_boxes",
-           "gif_durations_ms"]
+           "gif_durations_ms", "mp4_is_h264", "video_backends"]
 
 _FONT = cv2.FONT_HERSHEY_SIMPLEX
 _SHIFT = 4  # sub-pixel bits for cv2 drawing
@@ -515,6 +515,17 @@ def video_backends() -> dict[str, bool]:
     except ImportError:
         has_ffmpeg = False
     return {"gif": True, "mp4-imageio-ffmpeg": has_ffmpeg, "mp4-opencv": _opencv_mp4_ok()}
+
+
+def mp4_is_h264() -> bool:
+    """Whether an MP4 written here is H.264, which browsers play: imageio with imageio-ffmpeg (the ``video``
+    extra). Without them OpenCV's bundled FFmpeg writes MPEG-4 Part 2, which most browsers do not play."""
+    try:
+        import imageio.v2  # noqa: F401
+        import imageio_ffmpeg  # noqa: F401
+    except ImportError:
+        return False
+    return True
 
 
 def _opencv_mp4_ok() -> bool:

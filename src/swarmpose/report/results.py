@@ -345,6 +345,11 @@ def load_results(results_dir: str | os.PathLike[str]) -> Results:
         A file is malformed (the message names it).
     """
     root = Path(results_dir)
+    if root.is_file():  # summary.json, a run's joints.npz, a video: the folder that holds it is meant
+        parent = root.parent
+        hint = (f" (its folder {parent} is one)" if (parent / "config.json").is_file()
+                or (parent / "comparison.json").is_file() else " (give the folder that `swarmpose track` wrote)")
+        raise DataError(f"{root} is a file, not a results folder{hint}")
     if not root.is_dir():
         raise DataError(f"{root}: no such results folder")
     cfg_file = root / "config.json"

@@ -1,0 +1,47 @@
+"""Measured accuracy and speed of the named algorithms on the shared walk, for ``swarmpose algorithms``.
+
+Each entry is one configuration's measurement on ``cmu_16_16_walk`` (the clip every suite tracks,
+synthesised with the default settings) at the algorithm's own rate: D_mean in mm (the mean 3D error of
+the 15 joints, averaged over the runs), the tracking rate, frames/s per run (two runs at a time on 2
+cores; None where it was not recorded), the number of runs (seed 0) and the command that measured it.
+An algorithm without an entry has no measured walk number. docs/results.md has these numbers with
+their spread, and the rest.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+__all__ = ["CLIP", "MEASURED", "Measured"]
+
+#: The clip of every measurement here.
+CLIP = "cmu_16_16_walk"
+_WALK = "../shared/data/mocap/cmu_16_16_walk.bvh"
+
+
+class Measured(NamedTuple):
+    d_mean_mm: float
+    fps: float
+    frames_per_s: float | None
+    runs: int
+    command: str
+
+
+def _track(algo: str, fps: int) -> str:
+    return f"swarmpose track {_WALK} --algo {algo} --fps {fps} --runs 5"
+
+
+MEASURED: dict[str, Measured] = {
+    "sppso": Measured(72.4, 20.0, 8.4, 5, _track("sppso", 20)),
+    "sppso3": Measured(68.5, 20.0, None, 5, _track("sppso3", 20)),
+    "pso-global": Measured(84.8, 20.0, None, 5, _track("pso-global", 20)),
+    "hard2": Measured(87.4, 20.0, None, 5, _track("hard2", 20)),
+    # thesis Fig. 6.14 runs the 12 hard partitions at 60 fps only, as the thesis-partitions suite does
+    "hpso12": Measured(81.7, 60.0, 1.3, 5, _track("hpso12", 60)),
+    "apf": Measured(85.4, 20.0, None, 5, _track("apf", 20)),
+    "apf-adaptive": Measured(50.0, 20.0, 5.0, 5, _track("apf-adaptive", 20)),
+    "apf-dr05": Measured(30.6, 20.0, 2.9, 5, _track("apf-dr05", 20)),
+    # on the synthetic 2D marker detections, with the default (symmetric reprojection) fitness
+    "aapso": Measured(14.8, 25.0, None, 5, _track("aapso", 25)),
+    "aapso-fixed": Measured(15.2, 25.0, None, 5, "swarmpose compare markers-reprojection"),
+}
