@@ -373,8 +373,8 @@ def test_algorithms_show_the_measured_walk_numbers_and_the_default():
     assert res.exit_code == 0, res.output
     data = json.loads(res.stdout)
     rows = {r["name"]: r for r in data["algorithms"]}
-    assert list(rows) == [r["name"] for r in describe()] and data["default"] == DEFAULT_ALGO == "sppso"
-    assert [n for n, r in rows.items() if r["default"]] == ["sppso"] and data["walk_clip"] == CLIP
+    assert list(rows) == [r["name"] for r in describe()] and data["default"] == DEFAULT_ALGO == "refined"
+    assert [n for n, r in rows.items() if r["default"]] == ["refined"] and data["walk_clip"] == CLIP
     assert set(MEASURED) <= set(rows)  # nothing measured for a name the registry does not have
     for name, r in rows.items():
         m = MEASURED.get(name)
@@ -393,7 +393,7 @@ def test_algorithms_show_the_measured_walk_numbers_and_the_default():
     assert "walk D_mean" in " ".join(text.split()) and "frames/s" in text
     lines = [[c.strip() for c in re.split(rf"[{_BOX}]", ln)[1:-1]] for ln in text.splitlines() if ln.startswith("│")]
     starts = {cells[0]: i for i, cells in enumerate(lines) if cells[0]}
-    assert set(rows) <= set(starts) and [c for c in (lines[starts["sppso"] + 1][0],) if c] == ["(default)"]
+    assert set(rows) <= set(starts) and [c for c in (lines[starts["refined"] + 1][0],) if c] == ["(default)"]
     for name, r in rows.items():  # D_mean and the rate below it, frames/s, or dashes
         first, second = lines[starts[name]], lines[starts[name] + 1]
         m = MEASURED.get(name)
@@ -498,12 +498,12 @@ def test_ctrl_c_says_what_was_saved(small_sequence: Path, tmp_path: Path, monkey
 
     monkeypatch.setattr(runner_module, "track_runs", interrupted)
     out = tmp_path / "res"
-    res = CliRunner().invoke(app, ["track", str(small_sequence), "--out", str(out), "--json"], env={"COLUMNS": "300"})
+    res = CliRunner().invoke(app, ["track", str(small_sequence), "--algo", "sppso", "--out", str(out), "--json"], env={"COLUMNS": "300"})
     assert res.exit_code == 130
     message = json.loads(res.stdout)["error"]
     assert message.startswith("interrupted before any frame was saved: nothing to resume") and "--resume" not in message
     saved["frames"] = 3
-    res = CliRunner().invoke(app, ["track", str(small_sequence), "--out", str(out), "--json"], env={"COLUMNS": "300"})
+    res = CliRunner().invoke(app, ["track", str(small_sequence), "--algo", "sppso", "--out", str(out), "--json"], env={"COLUMNS": "300"})
     assert res.exit_code == 130
     assert json.loads(res.stdout)["error"] == (f"interrupted; 3 frames tracked so far are saved in {out}: run the same "
                                                "command with --resume to continue")
@@ -513,7 +513,7 @@ def test_ctrl_c_says_what_was_saved(small_sequence: Path, tmp_path: Path, monkey
         raise KeyboardInterrupt
 
     monkeypatch.setattr(runner_module, "resolve_sequence", synthesising)  # Ctrl-C while a clip is synthesised
-    res = CliRunner().invoke(app, ["track", str(small_sequence), "--json"])
+    res = CliRunner().invoke(app, ["track", str(small_sequence), "--algo", "sppso", "--json"])
     assert res.exit_code == 130 and "nothing to resume" in json.loads(res.stdout)["error"]
 
 
@@ -535,3 +535,54 @@ def test_ctrl_c_in_compare_says_what_was_saved(small_sequence: Path, tmp_path: P
     res = CliRunner().invoke(app, [*args, "--resume"])
     assert json.loads(res.stdout)["error"] == (f"interrupted; 1 frame tracked so far is saved in {out}: run the same "
                                                "command with --resume to continue")
+
+
+# --------------------------------------------------------------------------- subject, bench track
+
+
+def test_subject_from_height_writes_a_file_track_reads(tmp_path: Path):
+    from swarmpose.body.spec import Subject
+    from swarmpose.track.tracker import TrackConfig
+
+    out = tmp_path / "me.json"
+    res = CliRunner().invoke(app, ["subject", "--height", "1750", "--out", str(out), "--json"])
+    assert res.exit_code == 0, res.output
+    data = json.loads(res.stdout)
+    assert data["out"] == str(out) and data["height_mm"] == 1750 and 300 < data["thigh_mm"] < 500
+    assert Subject.load(out).offsets["l_thigh"][2] == pytest.approx(-data["thigh_mm"])
+    again = CliRunner().invoke(app, ["subject", "--height", "1750", "--out", str(out)])
+    assert again.exit_code == 2 and "--force" in again.output
+    metres = CliRunner().invoke(app, ["subject", "--height", "1.75", "--out", str(tmp_path / "m.json")])
+    assert metres.exit_code == 2 and "millimetres" in metres.output and not (tmp_path / "m.json").exists()
+    assert TrackConfig(subject=str(out)).subject == str(out)
+    from swarmpose.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="not both"):
+        TrackConfig(subject=str(out), height_mm=1750.0)
+    with pytest.raises(ConfigError, match="does not exist"):
+        TrackConfig(subject=str(tmp_path / "nobody.json"))
+    with pytest.raises(ConfigError, match="millimetres"):
+        TrackConfig(height_mm=17.5)
+
+
+def test_bench_track_reports_every_part(short_sequence_cli: Path):
+    res = CliRunner().invoke(app, ["bench", "track", str(short_sequence_cli), "--algo", "sppso", "--max-frames", "2",
+                                   "--json"])
+    assert res.exit_code == 0, res.output
+    data = json.loads(res.stdout)
+    from swarmpose.track.timing import PARTS
+
+    assert [p["part"] for p in data["parts"]] == list(PARTS) and data["frames"] == 2
+    assert data["parts"][PARTS.index("fitness")]["seconds"] > 0 and data["evals_per_frame"] == 1000
+    timed = sum(p["seconds"] for p in data["parts"] if p["part"] != "writing")
+    assert timed <= data["seconds"] * 1.01  # exclusive times: no part is counted twice
+    assert data["peak_rss_mb"] > 0
+
+
+@pytest.fixture(scope="module")
+def short_sequence_cli(tmp_path_factory, mocap_dir: Path) -> Path:
+    from swarmpose.synth.synthesize import synthesize
+
+    out = tmp_path_factory.mktemp("seq") / "walk9"
+    synthesize(mocap_dir / "cmu_16_16_walk.bvh", out, fps=60, seed=0, max_frames=9, measure=False, progress=False)
+    return out

@@ -28,6 +28,9 @@ PAPER_BUDGETS = {
     "aapso": 5 * 80 * 10 + 30 * 10,  # Sharifi et al. 2017, sec. 4.2
     "aapso-fixed": 5 * 80 * 10 + 30 * 10,
 }
+#: Configurations beyond the papers and their budgets (base search + refinement; recovery only when a limb is lost).
+OWN_BUDGETS = {"refined": 200 * 6 + 200}
+BUDGETS = {**PAPER_BUDGETS, **OWN_BUDGETS}
 
 
 def _fitness(model):
@@ -40,12 +43,12 @@ def _fitness(model):
 
 
 def test_names_and_describe():
-    assert set(names()) == set(PAPER_BUDGETS)
+    assert set(names()) == set(BUDGETS)
     rows = describe()
     assert [r["name"] for r in rows] == list(names())
     for r in rows:
         assert set(r) == {"name", "summary", "fitness", "evals_per_frame", "reference"}
-        assert r["evals_per_frame"] == PAPER_BUDGETS[r["name"]]
+        assert r["evals_per_frame"] == BUDGETS[r["name"]]
         assert r["reference"] and len(r["summary"]) > 20  # every entry says what it is
         assert r["fitness"] == ("reprojection" if r["name"].startswith("aapso") else "silhouette_edge")
 
@@ -70,13 +73,14 @@ def test_unknown_name_lists_known_names_and_model_is_required(balan31):
         register("sppso", lambda m, f: None, reference="x", evals_per_frame=1)
 
 
-@pytest.mark.parametrize("name", sorted(PAPER_BUDGETS))
+@pytest.mark.parametrize("name", sorted(BUDGETS))
 @pytest.mark.parametrize("make_model", [make_balan31, make_marker45], ids=["balan31", "marker45"])
 def test_budget_is_exactly_the_papers(name, make_model):
-    """Run every named configuration to done and count the evaluations it asked for."""
+    """Run every named configuration to done and count the evaluations it asked for (a refinement that
+    has converged may stop before its budget)."""
     model = make_model()
     cfg = get(name, model=model, fps=60)
-    assert cfg.name == name and cfg.evals_per_frame == PAPER_BUDGETS[name]
+    assert cfg.name == name and cfg.evals_per_frame == BUDGETS[name]
     x0 = np.zeros(len(model.param_names))
     opt = cfg.start(x0, np.random.default_rng(0))
     f = _fitness(model)
@@ -90,7 +94,11 @@ def test_budget_is_exactly_the_papers(name, make_model):
         return f(x)
 
     res = optimize(opt, counting)
-    assert counted == res.evaluations == opt.evaluations == PAPER_BUDGETS[name]
+    assert counted == res.evaluations == opt.evaluations
+    if name in PAPER_BUDGETS:
+        assert counted == PAPER_BUDGETS[name]
+    else:
+        assert counted <= BUDGETS[name]
     # every optimiser ends better than where it started (the APFs' estimate is the particles' weighted mean,
     # whose score is the weighted mean of the particles' scores, not its own fitness)
     assert f(res.x[None])[0] > f(x0[None])[0]
@@ -98,7 +106,7 @@ def test_budget_is_exactly_the_papers(name, make_model):
         assert res.score == f(res.x[None])[0]
 
 
-@pytest.mark.parametrize("name", sorted(PAPER_BUDGETS))
+@pytest.mark.parametrize("name", sorted(BUDGETS))
 def test_same_seed_same_asks(name, balan31):
     def asks(seed):
         cfg = get(name, model=balan31, fps=20)

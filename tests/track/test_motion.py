@@ -85,3 +85,19 @@ def test_groups_limit_the_step_and_are_checked_against_the_model():
         parse_motion("constant-velocity@arms").mask(model)
     with pytest.raises(ConfigError, match="after '@'"):
         parse_motion("constant-velocity@")
+
+
+def test_single_parameters_move_on_by_name():
+    """``@pelvis_tx+pelvis_ty`` (refined's default): the horizontal root position, not its height."""
+    from swarmpose.body.model import load_model
+
+    model = load_model("balan31")
+    cv = parse_motion("constant-velocity@pelvis_tx+pelvis_ty")
+    mask = cv.mask(model)
+    assert np.flatnonzero(mask).tolist() == [model.param_index("pelvis_tx"), model.param_index("pelvis_ty")]
+    history = np.zeros((2, model.n_params))
+    history[1, 3:6] = (10.0, 20.0, 30.0)
+    pred = cv.predict(history, None, mask)
+    np.testing.assert_allclose(pred[3:6], (20.0, 40.0, 30.0))
+    with pytest.raises(ConfigError, match="parameter's name"):
+        parse_motion("constant-velocity@pelvis_tq").mask(model)

@@ -449,7 +449,7 @@ def test_max_frames_tracks_the_first_frames_only_and_is_part_of_the_settings(sho
     from swarmpose.report.summary import _reproduce
 
     monkeypatch.chdir(tmp_path)
-    res = CliRunner().invoke(app, ["track", str(short_sequence), "--fps", "60", "--max-frames", "3",
+    res = CliRunner().invoke(app, ["track", str(short_sequence), "--algo", "sppso", "--fps", "60", "--max-frames", "3",
                                    "--workers", "1", "--json"])
     assert res.exit_code == 0, res.output
     data = json.loads(res.stdout)
@@ -469,15 +469,15 @@ def test_max_frames_tracks_the_first_frames_only_and_is_part_of_the_settings(sho
             TrackConfig(max_frames=bad)
     assert TrackConfig(max_frames=3.0).max_frames == 3 and isinstance(TrackConfig(max_frames=np.int64(3)).max_frames, int)
     # more than the sequence has: all frames, said so; a single frame has no interval (null, not NaN)
-    res = CliRunner().invoke(app, ["track", str(short_sequence), "--fps", "20", "--max-frames", "50",
+    res = CliRunner().invoke(app, ["track", str(short_sequence), "--algo", "sppso", "--fps", "20", "--max-frames", "50",
                                    "--workers", "1", "--out", str(tmp_path / "long")])
     assert res.exit_code == 0 and "has 4 frames at 20 fps" in res.stderr
-    res = CliRunner().invoke(app, ["track", str(short_sequence), "--fps", "20", "--max-frames", "1",
+    res = CliRunner().invoke(app, ["track", str(short_sequence), "--algo", "sppso", "--fps", "20", "--max-frames", "1",
                                    "--workers", "1", "--out", str(tmp_path / "one"), "--json"])
     assert res.exit_code == 0, res.output
     assert json.loads(res.stdout)["frame_interval_s"] == {"mean": None, "min": None, "max": None}
     assert "NaN" not in (tmp_path / "one" / "summary.json").read_text()
-    res = CliRunner().invoke(app, ["track", str(short_sequence), "--max-frames", "0", "--json"])
+    res = CliRunner().invoke(app, ["track", str(short_sequence), "--algo", "sppso", "--max-frames", "0", "--json"])
     assert res.exit_code == 2
 
 
@@ -549,7 +549,7 @@ def test_track_flags_reach_the_tracker(short_sequence, tmp_path):
     from swarmpose.cli.app import app
 
     def track(name, *args):
-        res = CliRunner().invoke(app, ["track", str(short_sequence), "--workers", "1", "--no-progress", *args,
+        res = CliRunner().invoke(app, ["track", str(short_sequence), "--algo", "sppso", "--workers", "1", "--no-progress", *args,
                                        "--out", str(tmp_path / name), "--json"])
         assert res.exit_code == 0, res.output
         with np.load(tmp_path / name / "run_000" / "joints.npz", allow_pickle=False) as z:

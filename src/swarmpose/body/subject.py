@@ -177,12 +177,3 @@ def subject_from_joints(spec: BodySpec, joints15: np.ndarray, name: str = "subje
     offsets["pelvis_to_torso_top"] = _torso_top(offsets, cones)
     offsets = {k: v for k, v in offsets.items() if k in spec.default_subject.offsets}
     return Subject(name=name, offsets=offsets, cones=cones, source=f"15-joint ground truth ({len(g)} frames); {note}")
-
-
-def __getattr__(name: str) -> Any:
-    # swarmpose.track.tracker still imports subject_from_clip from here; it lives in swarmpose.io.mocap
-    if name == "subject_from_clip":
-        from swarmpose.io.mocap import subject_from_clip
-
-        return subject_from_clip
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

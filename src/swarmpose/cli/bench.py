@@ -1,13 +1,15 @@
-"""``swarmpose bench fitness``: evaluations per second of the fitness backends, and frame preparation."""
+"""``swarmpose bench fitness`` (evaluations per second of the fitness backends, and frame preparation) and
+``swarmpose bench track`` (one tracking run timed by part)."""
 
 from __future__ import annotations
 
 import typer
 
 from swarmpose.cli.app import app
-from swarmpose.cli.common import console, err_console, fail_on_user_error, print_json
+from swarmpose.cli.common import DEFAULT_ALGO, console, err_console, fail_on_user_error, print_json
 
-bench_app = typer.Typer(help="Benchmarks (fitness throughput).", no_args_is_help=True)
+bench_app = typer.Typer(help="Benchmarks: fitness throughput, and where a tracking run spends its time.",
+                        no_args_is_help=True)
 app.add_typer(bench_app, name="bench")
 
 
@@ -101,3 +103,41 @@ def fitness(
     console.print(f"frame preparation ({views} raw 644x484 images -> features + prefix sums): "
                   f"{res['prepare_ms']:.1f} ms (features {p['features_ms']:.1f} ms, prefix sums "
                   f"{p['prefix_ms']:.2f} ms); per level: {levels}", highlight=False)
+
+
+@bench_app.command("track")
+@fail_on_user_error
+def track(
+    source: str = typer.Argument(None, help="Sequence folder or BVH clip (default: the shared walk, "
+                                            "cmu_16_16_walk)."),
+    algo: str = typer.Option(None, help="Algorithm (default: track's default; see `swarmpose algorithms`)."),
+    fps: float = typer.Option(20.0, help="Tracking rate, frames/s."),
+    max_frames: int = typer.Option(None, "--max-frames", min=1, help="Only the first N frames."),
+    seed: int = typer.Option(0, min=0, help="Seed of the run."),
+    json_out: bool = typer.Option(False, "--json", help="Print one JSON object instead of a table."),
+) -> None:
+    """Track one run in this process and show where its time goes, part by part of the frame loop
+    (features, motion model, optimiser, fitness, hard priors, recovery, results writing)."""
+    from swarmpose.cli.demo import DEFAULT_CLIP
+    from swarmpose.track.bench import bench_track
+    from swarmpose.track.runner import resolve_sequence
+    from swarmpose.track.tracker import TrackConfig
+
+    cfg = TrackConfig(algo=algo or DEFAULT_ALGO, fps=fps, seed=seed, max_frames=max_frames)
+    seq = resolve_sequence(source or str(DEFAULT_CLIP), progress=not json_out)
+    res = bench_track(seq, cfg)
+    if json_out:
+        print_json(res)
+        return
+    from rich.table import Table
+
+    table = Table(title=f"{res['algo']} at {res['fps']:g} fps: {res['frames']} frames, "
+                        f"{res['frames_per_s']:.2f} frames/s ({res['ms_per_frame']:.1f} ms per frame), "
+                        f"{res['evals_per_frame']} evaluations per frame")
+    for col in ("part", "ms per frame", "share", "what"):
+        table.add_column(col, justify="left" if col in ("part", "what") else "right", overflow="fold")
+    for p in res["parts"]:
+        table.add_row(p["part"], f"{p['ms_per_frame']:.1f}", f"{100 * p['share']:.0f} %", p["what"])
+    console.print(table)
+    console.print(f"peak memory {res['peak_rss_mb']:.0f} MB; D_mean {res['d_mean_mm']:.1f} mm"
+                  if res["d_mean_mm"] is not None else f"peak memory {res['peak_rss_mb']:.0f} MB", highlight=False)

@@ -207,3 +207,38 @@ def _unit(unit: str | None):
     except ValueError:
         return unit
 
+
+
+@app.command()
+@fail_on_user_error
+def subject(
+    height: float = typer.Option(..., "--height", help="The person's stature in millimetres (e.g. 1750)."),
+    out: Path = typer.Option(..., help="Subject file to write (.json), for `track --subject`."),
+    model: str = typer.Option("balan31", help="Body model: a shipped name (balan31, full45) or a spec file."),
+    name: str = typer.Option(None, help="Name recorded in the file (default: stature-<height>mm)."),
+    force: bool = typer.Option(False, "--force", help="Overwrite --out when it exists."),
+    json_out: bool = typer.Option(False, "--json", help="Print one JSON object instead of a summary."),
+) -> None:
+    """Write a subject (limb lengths and cone sizes) for a person of the given height, from published
+    proportions (Winter 2009, Fig. 4.1): for recordings without motion capture of the person."""
+    from swarmpose.body.anthropometry import subject_from_height
+    from swarmpose.body.spec import load_spec
+    from swarmpose.errors import ConfigError
+
+    if out.exists() and not force:
+        raise ConfigError(f"{out} exists; pass --force to overwrite it")
+    if out.suffix != ".json":
+        raise ConfigError(f"--out {out}: a subject file is JSON; give a name ending in .json")
+    spec = load_spec(model)
+    subj = subject_from_height(spec, height, name=name)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    subj.save(out)
+    o = subj.offsets
+    lengths = {k: abs(o[v][2]) for k, v in (("thigh_mm", "l_thigh"), ("shank_mm", "l_shank"),
+                                             ("upper_arm_mm", "l_upper_arm"), ("forearm_mm", "l_forearm"))}
+    if json_out:
+        print_json({"out": str(out), "height_mm": height, "model": model, "name": subj.name, **lengths,
+                    "source": subj.source})
+        return
+    console.print(f"wrote {out}: {subj.name} ({model}); " + ", ".join(
+        f"{k[:-3].replace('_', ' ')} {v:.0f} mm" for k, v in lengths.items()), markup=False, highlight=False)

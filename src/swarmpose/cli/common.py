@@ -27,6 +27,9 @@ err_console = Console(stderr=True, soft_wrap=True)
 
 F = TypeVar("F", bound=Callable[..., Any])
 
+#: The algorithm of `track`, `demo` and `bench track` when none is named.
+DEFAULT_ALGO = "refined"
+
 
 def count(n: int, word: str) -> str:
     """``1 frame``, ``2 frames``."""

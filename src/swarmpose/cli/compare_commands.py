@@ -108,7 +108,8 @@ def _list_suites(names: list[str], *, seed: int, downsample: int, runs: int, n_c
             evals = int(cfg.optimizer(load_model(cfg.model, None, cfg.variant)).evals_per_frame)
             entries.append({"label": e.label, "algo": e.algo, "fps": e.fps, "variant": e.variant,
                             "fitness": cfg.fitness_kind, "fitness_options": e.fitness_options,
-                            "evals_per_frame": evals, "max_frames": cfg.max_frames, "reference": e.reference})
+                            "evals_per_frame": evals, "max_frames": cfg.max_frames, "reference": e.reference,
+                            "motion": cfg.motion})
         listing.append({"suite": name, "entries": entries, "jobs": len(entries) * runs * n_clips})
     if json_out:
         print_json({"suites": listing, "runs": runs, "clips": n_clips, "max_frames": max_frames})
@@ -130,12 +131,12 @@ def _list_suites(names: list[str], *, seed: int, downsample: int, runs: int, n_c
         for e in item["entries"]:
             row = {"entry": e["label"], "algorithm": e["algo"], "fps": f"{e['fps']:g}", "variant": e["variant"] or "-",
                    "fitness": e["fitness"] + (f" ({e['fitness_options']})" if e["fitness_options"] else ""),
-                   "evals per frame": str(e["evals_per_frame"])}
+                   "motion": e["motion"], "evals per frame": str(e["evals_per_frame"])}
             row.update({"frames": str(e["max_frames"])} if max_frames is not None else {})
             row.update({"in the paper": _in_paper(e["reference"], footer, shared)} if len(refs) > 1 else {})
             rows.append(row)
         # a setting every entry shares is said once under the table: the columns left have room at 80 columns
-        same = {col: rows[0][col] for col in ("variant", "fitness", "evals per frame", "frames")
+        same = {col: rows[0][col] for col in ("variant", "fitness", "motion", "evals per frame", "frames")
                 if col in rows[0] and len(rows) > 1 and len({r[col] for r in rows}) == 1}
         cols = [col for col in (rows[0] if rows else {}) if col not in same]
         narrow = {col: 6 for col in ("evals per frame", "frames")}  # numbers; the header wraps above them
@@ -158,7 +159,8 @@ def _list_suites(names: list[str], *, seed: int, downsample: int, runs: int, n_c
         console.print(table)
         if same:
             said = {"variant": lambda v: "no variant" if v == "-" else f"variant {v}",
-                    "fitness": lambda v: f"fitness {v}", "evals per frame": lambda v: f"{v} evaluations per frame",
+                    "fitness": lambda v: f"fitness {v}", "motion": lambda v: f"motion {v}",
+                    "evals per frame": lambda v: f"{v} evaluations per frame",
                     "frames": lambda v: f"{v} frames"}
             console.print(f"  every entry: {', '.join(said[col](v) for col, v in same.items())}", markup=False,
                           highlight=False)

@@ -7,7 +7,7 @@ from pathlib import Path
 import typer
 
 from swarmpose.cli.app import app
-from swarmpose.cli.common import console, err_console, escape, fail_on_user_error, print_json
+from swarmpose.cli.common import DEFAULT_ALGO, console, err_console, escape, fail_on_user_error, print_json
 
 DEFAULT_CLIP = Path(__file__).resolve().parents[3].parent / "shared" / "data" / "mocap" / "cmu_16_16_walk.bvh"
 
@@ -17,13 +17,14 @@ DEFAULT_CLIP = Path(__file__).resolve().parents[3].parent / "shared" / "data" / 
 def demo(
     clip: Path = typer.Option(DEFAULT_CLIP, help="BVH clip to run on (default: the shared walking clip)."),
     out: Path = typer.Option(Path("results/demo"), help="Results folder."),
-    algo: str = typer.Option("sppso", help="Algorithm (see `swarmpose algorithms`)."),
+    algo: str = typer.Option(DEFAULT_ALGO, help="Algorithm (see `swarmpose algorithms`)."),
     fps: float = typer.Option(20.0, help="Tracking frame rate."),
     runs: int = typer.Option(3, min=1, help="Independent runs."),
     seed: int = typer.Option(0, min=0, help="Seed (>= 0); run k draws from SeedSequence(\\[seed, k])."),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object with the summary and paths."),
 ) -> None:
-    """Synthesise the walking clip (cached), track it with SPPSO at 20 fps, write results and a report.
+    """Synthesise the walking clip (cached), track it with the default tracker (refined) at 20 fps, write
+    results and a report.
 
     Steps: render the clip's real motion capture into 4 HumanEva-like cameras (once; cached under
     cache/sequences), fit the IK floor, track every run in parallel, then write the error graphs,

@@ -9,6 +9,7 @@ import typer
 
 from swarmpose.cli.app import app
 from swarmpose.cli.common import (
+    DEFAULT_ALGO,
     console,
     count,
     err_console,
@@ -22,7 +23,6 @@ if TYPE_CHECKING:
     from swarmpose.track.tracker import TrackConfig
 
 #: What `swarmpose track` runs without --algo (`swarmpose algorithms` marks it).
-DEFAULT_ALGO = "sppso"
 
 
 def run_setting_parts(*, max_frames: int | None, seed: int, downsample: int) -> list[str]:
@@ -30,6 +30,12 @@ def run_setting_parts(*, max_frames: int | None, seed: int, downsample: int) -> 
     default (``30frames``, ``s1``, ``ds2``); `track`'s and `compare`'s folders share them."""
     return ([f"{max_frames}frames"] if max_frames is not None else []) + ([f"s{seed}"] if seed else []) + \
         ([f"ds{downsample}"] if downsample != 1 else [])
+
+
+def _default_motion(algo: str) -> str:
+    from swarmpose.optim.registry import default_motion
+
+    return default_motion(algo)
 
 
 def default_results_name(name: str, cfg: TrackConfig) -> str:
@@ -42,9 +48,13 @@ def default_results_name(name: str, cfg: TrackConfig) -> str:
     if cfg.model != "balan31":
         parts.append(folder_slug(Path(cfg.model).stem))
     for value, default in ((cfg.fitness, "auto"), (cfg.optim_variant, ""), (cfg.fitness_options, ""),
-                           (cfg.feature_options, ""), (cfg.motion, "zero-velocity")):
+                           (cfg.feature_options, ""), (cfg.motion, _default_motion(cfg.algo))):
         if value and value != default:
             parts.append(folder_slug(str(value)))
+    if cfg.subject:
+        parts.append("subject-" + folder_slug(Path(cfg.subject).stem))
+    if cfg.height_mm is not None:
+        parts.append(f"h{cfg.height_mm:g}mm")
     return "-".join(parts)
 
 
@@ -132,10 +142,15 @@ def track(
                  "silhouette_threshold (grey levels from the background, default 25), silhouette_blur_px "
                  "(default 2), silhouette_open_px (default 3), silhouette_close_px (default 5)."),
     motion: str = typer.Option(
-        "zero-velocity", help="Motion model that centres each frame's search: zero-velocity (the thesis's, "
-                              "sec. 5.3.2) or constant-velocity\\[:D]\\[@GROUP+...] (moves on by D x the last "
-                              "step, D = 1 by default, only the named parameter groups if given, e.g. "
-                              "@root_position; an extension, not in the papers, and worse on the walk)."),
+        "auto", help="Motion model that centres each frame's search: auto (the algorithm's own: "
+                     "constant-velocity@pelvis_tx+pelvis_ty for refined, zero-velocity for the papers'), zero-velocity "
+                     "(the thesis's, sec. 5.3.2) or constant-velocity\\[:D]\\[@GROUP+...] (moves on by D x the "
+                     "last step, D = 1 by default, only the named parameter groups if given, e.g. "
+                     "@root_position)."),
+    subject: Path = typer.Option(None, help="Subject file (limb lengths, cone sizes; `swarmpose subject`) instead "
+                                            "of the one measured from the sequence's motion capture."),
+    height: float = typer.Option(None, "--height", help="Build the subject from this stature, mm (published "
+                                                          "proportions, as `swarmpose subject`)."),
     max_frames: int = typer.Option(None, min=1, help="Track only the first N frames at --fps (a quick try; the "
                                                      "default --out then has -<N>frames after the rate)."),
     workers: int = typer.Option(None, min=1, help="Parallel worker processes (default: one per core, at most --runs); "
@@ -162,7 +177,7 @@ def track(
     cfg = TrackConfig(algo=algo, fps=fps, model=model, fitness=fitness, backend=backend,
                       downsample=downsample, seed=seed, fitness_options=fitness_options,
                       feature_options=features, optim_variant=variant, motion=motion,
-                      max_frames=max_frames)
+                      max_frames=max_frames, subject=str(subject or ""), height_mm=height)
     if backend == "torch" and not scheduler:
         import torch
 

@@ -27,8 +27,8 @@ class Measured(NamedTuple):
     command: str
 
 
-def _track(algo: str, fps: int) -> str:
-    return f"swarmpose track {_WALK} --algo {algo} --fps {fps} --runs 5"
+def _track(algo: str, fps: int, runs: int = 5) -> str:
+    return f"swarmpose track {_WALK} --algo {algo} --fps {fps} --runs {runs}"
 
 
 MEASURED: dict[str, Measured] = {
@@ -44,4 +44,6 @@ MEASURED: dict[str, Measured] = {
     # on the synthetic 2D marker detections, with the default (symmetric reprojection) fitness
     "aapso": Measured(14.8, 25.0, None, 5, _track("aapso", 25)),
     "aapso-fixed": Measured(15.2, 25.0, None, 5, "swarmpose compare markers-reprojection"),
+    # the default; the last entry of `swarmpose compare ablation --runs 2` (the same runs)
+    "refined": Measured(24.8, 20.0, 3.1, 2, _track("refined", 20, runs=2)),
 }

@@ -22,6 +22,7 @@ from swarmpose.track.runner import (
     connect_scheduler,
     errors_from_summary,
     run_jobs,
+    sum_recoveries,
 )
 from swarmpose.track.tracker import TrackConfig, prepare_track, write_config
 
@@ -58,7 +59,8 @@ def suite_configs(name: str, *, seed: int = 0, downsample: int = 1,
         return int(np.floor((max_frames - 1) * e.fps / slowest + 1e-9)) + 1
 
     return [(e, TrackConfig(algo=e.algo, fps=e.fps, fitness=e.fitness, seed=seed, downsample=downsample,
-                            optim_variant=e.variant, fitness_options=e.fitness_options, max_frames=frames(e)))
+                            optim_variant=e.variant, fitness_options=e.fitness_options, max_frames=frames(e),
+                            motion=e.motion))
             for e in entries]
 
 
@@ -119,7 +121,7 @@ def _run_cells(name: str, configs: list[tuple[Entry, TrackConfig]], planned: dic
                "worst_d_mean_mm": agg["worst"]["d_mean"],
                "ik_floor_mm": setup.ik_floor_mm, "mmta": agg["mmta"], "mmtp_mm": agg["mmtp"],
                "frames_per_s": float(np.mean([r["frames_per_s"] for r in mine])), "reference": e.reference,
-               "out_dir": str(cell)}
+               "recoveries": sum_recoveries(mine), "out_dir": str(cell)}
         (cell / "summary.json").write_text(json.dumps({**row, "per_run": mine}, indent=1, default=float) + "\n")
         rows.append(row)
     report = {"suite": name, "runs": runs, "seed": seed, "max_frames": max_frames,

@@ -10,9 +10,10 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import Any
 
-from swarmpose.errors import ConfigError, option_items
+from swarmpose.errors import ConfigError
+from swarmpose.fitness.base import parse_fitness_options  # re-exported: the suites' entries use both
+from swarmpose.optim.variants import apply_variant
 
 __all__ = ["Entry", "SUITES", "apply_variant", "parse_fitness_options", "suite"]
 
@@ -26,6 +27,7 @@ class Entry:
     fitness: str = "auto"
     fitness_options: str = ""
     reference: str = ""
+    motion: str = "auto"  # the algorithm's own (optim.registry.default_motion)
 
 
 def _thesis_apf() -> list[Entry]:
@@ -114,6 +116,19 @@ def _markers_reprojection() -> list[Entry]:
     return _marker_comparisons("reprojection")
 
 
+def _ablation() -> list[Entry]:
+    """The default configuration built up one component at a time at 20 fps (``refined``, beyond the papers):
+    Deutscher & Reid's APF at 200 x 6, the root carried on at its last velocity, the local pattern search,
+    and the recovery of lost limbs."""
+    ref = "beyond the papers; base: Deutscher & Reid 2005"
+    return [
+        Entry("apf-dr05 200x6", "apf-dr05", 20.0, variant="apf=200x6", motion="zero-velocity", reference=ref),
+        Entry("+ root velocity", "refined", 20.0, variant="refine=0+recovery=off", reference=ref),
+        Entry("+ pattern search", "refined", 20.0, variant="recovery=off", reference=ref),
+        Entry("+ limb recovery (refined)", "refined", 20.0, reference=ref),
+    ]
+
+
 SUITES = {
     "thesis-apf": _thesis_apf,
     "thesis-partitions": _thesis_partitions,
@@ -122,6 +137,7 @@ SUITES = {
     "thesis-fitness": _thesis_fitness,
     "markers": _markers,
     "markers-reprojection": _markers_reprojection,
+    "ablation": _ablation,
 }
 
 
@@ -132,74 +148,3 @@ def suite(name: str) -> list[Entry]:
         raise ConfigError(f"unknown suite {name!r}; known: {', '.join(SUITES)}") from None
 
 
-_BOOLEAN_WORDS = {"true": True, "yes": True, "on": True, "false": False, "no": False, "off": False}
-
-
-def parse_fitness_options(text: str) -> dict[str, Any]:
-    """``"terms=silhouette,edge_top=false"`` → ``{"terms": "silhouette", "edge_top": False}``.
-
-    true/yes/on and false/no/off (any case) become booleans; other values stay text, so that a
-    boolean option given ``0`` or ``maybe`` is refused by the fitness instead of read as true.
-    """
-    return {k: _BOOLEAN_WORDS.get(v.lower(), v) for k, v in option_items(text, "fitness option")}
-
-
-def apply_variant(config: Any, variant: str) -> Any:
-    """Modify a named optimiser configuration; every variant states its budget.
-
-    * ``budget=B`` (SPPSO family): every stage's iterations × B/1000 (thesis 6.4 gives only the
-      totals 1000/2000/4000; scaling iterations keeps the swarm sizes of Table 6.1).
-    * ``stage2=PxI``: the last stage runs P particles × I iterations (thesis 6.8, Table 6.4).
-    * ``global=PxI`` (AAPSO): one stage over all parameters (Sharifi et al. Table 4: 400 × 10).
-    * ``hard``: each stage after the first holds the earlier stages' parameters fixed (σ scale 0)
-      instead of searching them at σ/10 (Sharifi et al. Table 5; thesis 6.6 hard partitioning).
-    * ``apf=PxL`` (annealed particle filters): P particles × L layers (Sharifi et al. sec. 4.10 ran
-      Deutscher & Reid's APF with 700 × 5).
-    """
-    if not variant:
-        return config
-    from swarmpose.optim.staged import Stage
-
-    key, sep, value = (t.strip() for t in variant.partition("="))
-    forms = {"budget": "budget=B, e.g. budget=2000", "stage2": "stage2=PxI, e.g. stage2=40x20",
-             "global": "global=PxI, e.g. global=400x10", "apf": "apf=PxL, e.g. apf=700x5", "hard": "hard"}
-    if key not in forms:
-        raise ConfigError(f"unknown variant {variant!r} (budget=B, stage2=PxI, global=PxI, hard, apf=PxL)")
-    if (key == "hard") == bool(sep):
-        raise ConfigError(f"variant {variant!r}: expected {forms[key]}")
-
-    def sizes() -> tuple[int, int]:
-        parts = value.lower().split("x")
-        if len(parts) != 2 or not all(p.strip().isdigit() and int(p) >= 1 for p in parts):
-            raise ConfigError(f"variant {variant!r}: expected {forms[key]} (two whole numbers >= 1)")
-        return int(parts[0]), int(parts[1])
-
-    if key == "apf":
-        if not hasattr(config, "n_layers"):
-            raise ConfigError(f"variant {variant!r} needs an annealed particle filter, {config.name!r} is not one")
-        p, layers = sizes()
-        return dataclasses.replace(config, n_particles=p, n_layers=layers)
-    stages = getattr(config, "stages", None)
-    if stages is None:
-        raise ConfigError(f"variant {variant!r} needs a staged configuration, {config.name!r} has no stages")
-    if key == "budget":
-        if not value.isdigit() or int(value) < 1000 or int(value) % 1000:
-            raise ConfigError(f"variant {variant!r}: B must be 1000, 2000, 3000... (every stage's iterations x B/1000: "
-                              f"B evaluations per frame for the thesis's 1000-evaluation configurations)")
-        factor = int(value) / 1000.0
-        new = tuple(dataclasses.replace(s, n_iterations=int(round(s.n_iterations * factor))) for s in stages)
-    elif key == "stage2":
-        p, i = sizes()
-        new = (*stages[:-1], dataclasses.replace(stages[-1], n_particles=p, n_iterations=i))
-    elif key == "global":
-        import numpy as np
-
-        p, i = sizes()
-        active = np.logical_or.reduce([s.active for s in stages])
-        # the whole body at once: the last stage's fitness (SPPSO's first stage scores only the torso's edges)
-        new = (Stage("global", active, np.ones(active.shape[0]), p, i, dict(stages[-1].fitness_options)),)
-    else:  # hard
-        first = stages[0].active
-        new = (stages[0],) + tuple(
-            dataclasses.replace(s, active=s.active & ~first, sigma_scale=s.sigma_scale) for s in stages[1:])
-    return dataclasses.replace(config, stages=new)

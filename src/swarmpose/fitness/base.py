@@ -8,14 +8,14 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
-from swarmpose.errors import ConfigError, ShapeError
+from swarmpose.errors import ConfigError, ShapeError, option_items
 
 __all__ = ["Fitness", "ImageOptions", "parse_image_options", "TERMS", "silhouette_score", "edge_score",
-           "deutscher_reid_log_weight", "check_scores"]
+           "deutscher_reid_log_weight", "check_scores", "parse_fitness_options"]
 
 #: Values of the ``"terms"`` option.
-TERMS = ("silhouette+edge", "silhouette", "edge")
-_OPTION_KEYS = ("edge_cones", "edge_top", "terms")
+TERMS = ("silhouette+edge", "silhouette", "edge", "distance")
+_OPTION_KEYS = ("edge_cones", "edge_top", "terms", "distance")
 
 
 @runtime_checkable
@@ -54,13 +54,17 @@ class ImageOptions:
         ``"torso+upper_limbs"``) or explicit cone names.
     edge_top : bool
         Also sample the torso's upper edge (thesis sec. 5.2.1, 6.10; on in every SPPSO stage).
-    terms : {"silhouette+edge", "silhouette", "edge"}
-        Which terms of ``f = f_s + f_e`` are evaluated (the missing one counts as 0).
+    terms : {"silhouette+edge", "silhouette", "edge", "distance"}
+        Which terms of ``f = f_s + f_e`` are evaluated (the missing one counts as 0); ``"distance"``:
+        the silhouette distance term alone (:mod:`swarmpose.fitness.distance`).
+    distance : float
+        Weight of the silhouette distance term added to the fitness (0: off, the papers' fitness).
     """
 
     edge_cones: str | tuple[str, ...] = "all"
     edge_top: bool = True
     terms: str = "silhouette+edge"
+    distance: float = 0.0
 
     def __post_init__(self) -> None:
         if self.terms not in TERMS:
@@ -69,6 +73,13 @@ class ImageOptions:
             raise ConfigError(f"edge_top must be a bool, got {self.edge_top!r}")
         if not isinstance(self.edge_cones, str):
             object.__setattr__(self, "edge_cones", tuple(self.edge_cones))
+        try:
+            w = float(self.distance)
+        except (TypeError, ValueError):
+            w = float("nan")
+        if isinstance(self.distance, bool) or not (np.isfinite(w) and w >= 0):
+            raise ConfigError(f"distance must be a weight >= 0, got {self.distance!r}")
+        object.__setattr__(self, "distance", w)
 
 
 def parse_image_options(options: Mapping[str, Any] | None, default: ImageOptions) -> ImageOptions:
@@ -86,7 +97,8 @@ def parse_image_options(options: Mapping[str, Any] | None, default: ImageOptions
         raise ConfigError(f"unknown fitness option(s) {unknown} (known: {', '.join(_OPTION_KEYS)})")
     return ImageOptions(edge_cones=options.get("edge_cones", default.edge_cones),
                         edge_top=options.get("edge_top", default.edge_top),
-                        terms=options.get("terms", default.terms))
+                        terms=options.get("terms", default.terms),
+                        distance=options.get("distance", default.distance))
 
 
 def silhouette_score(Y: np.ndarray, P: np.ndarray, O: np.ndarray, a: float = 0.5) -> np.ndarray:
@@ -154,3 +166,15 @@ def check_scores(scores: np.ndarray, n: int) -> np.ndarray:
     if s.shape != (n,):
         raise ShapeError(f"fitness must return shape ({n},), got {s.shape}")
     return s
+
+
+_BOOLEAN_WORDS = {"true": True, "yes": True, "on": True, "false": False, "no": False, "off": False}
+
+
+def parse_fitness_options(text: str) -> dict[str, Any]:
+    """``"terms=silhouette,edge_top=false"`` → ``{"terms": "silhouette", "edge_top": False}``.
+
+    true/yes/on and false/no/off (any case) become booleans; other values stay text, so that a
+    boolean option given ``0`` or ``maybe`` is refused by the fitness instead of read as true.
+    """
+    return {k: _BOOLEAN_WORDS.get(v.lower(), v) for k, v in option_items(text, "fitness option")}

@@ -17,6 +17,15 @@ from swarmpose.fitness.base import (
     parse_image_options,
     silhouette_score,
 )
+from swarmpose.fitness.distance import (
+    DEFAULT_STRIDE_PX,
+    DEFAULT_TAU_PX,
+    FULL_WIDTH_PX,
+    DistanceMaps,
+    distance_terms,
+    distance_terms_reference,
+    prepare_distance_maps,
+)
 from swarmpose.render.project import DEFAULT_N_RIM, DEFAULT_NEAR_MM
 from swarmpose.render.samples import DEFAULT_EDGE_SPACING_PX, TOP_EDGE_CONE, edge_cone_mask
 
@@ -52,6 +61,9 @@ class ImageFitness:
     backend_options : mapping, optional
         Extra keyword arguments of the backend (e.g. ``{"threads": "prange"}`` for
         :class:`~swarmpose.fitness.backends.NumbaBackend`).
+    distance_tau, distance_stride : float, int
+        Truncation and observed-point grid of the silhouette distance term, pixels at 644 pixels wide
+        (scaled with the bound frame's width; :mod:`swarmpose.fitness.distance`).
     """
 
     kind = "image"
@@ -59,7 +71,13 @@ class ImageFitness:
     def __init__(self, model, *, backend: str = "numba", edge_cones: str | tuple[str, ...] = "all",
                  edge_top: bool = True, terms: str = "silhouette+edge",
                  edge_spacing: float = DEFAULT_EDGE_SPACING_PX, n_rim: int = DEFAULT_N_RIM,
-                 near: float = DEFAULT_NEAR_MM, backend_options: Mapping[str, Any] | None = None):
+                 near: float = DEFAULT_NEAR_MM, backend_options: Mapping[str, Any] | None = None,
+                 distance_tau: float = DEFAULT_TAU_PX, distance_stride: int = DEFAULT_STRIDE_PX):
+        if not distance_tau > 0 or not distance_stride >= 1:
+            raise ConfigError(f"distance_tau and distance_stride must be > 0 and >= 1 pixels, got "
+                              f"{distance_tau!r} and {distance_stride!r}")
+        self.distance_tau = float(distance_tau)
+        self.distance_stride = float(distance_stride)
         if not edge_spacing > 0:
             raise ConfigError(f"edge_spacing must be > 0 pixels, got {edge_spacing!r}")
         self.model = model
@@ -137,8 +155,13 @@ class ImageFitness:
         if p.shape[0] == 0:
             return np.zeros(0)
         p, bad = _finite_rows(p, self.model)
-        m = self.backend.measure(prepared, p, req)
-        scores = self._score(m, prepared, opts)
+        if opts.terms == "distance":
+            scores = self.distance_score(p)
+        else:
+            m = self.backend.measure(prepared, p, req)
+            scores = self._score(m, prepared, opts)
+            if opts.distance > 0:
+                scores += opts.distance * self.distance_score(p)
         if bad is not None:
             scores[bad] = np.nan  # the optimisers' "invalid" (shared/design.md; optim.base score rule)
         return scores
@@ -151,6 +174,40 @@ class ImageFitness:
 
     def _score(self, m: Measurements, prepared: PreparedFrame, opts: ImageOptions) -> np.ndarray:
         raise NotImplementedError
+
+    # ---------------------------------------------------------------- silhouette distance
+    def distance_maps(self) -> DistanceMaps:
+        """The bound frame's distance transforms and observed points (computed on first use, then kept)."""
+        prepared = self._bound()
+        maps = prepared.extra.get("distance_maps")
+        if maps is None:
+            s = prepared.width / FULL_WIDTH_PX
+            maps = prepare_distance_maps(prepared.silhouettes, tau=self.distance_tau * s,
+                                         stride=max(1, round(self.distance_stride * s)),
+                                         scale=max(1, round(prepared.width / (FULL_WIDTH_PX / 2))))
+            prepared.extra["distance_maps"] = maps
+        return maps
+
+    def distance_measure(self, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``A (N, C)``, ``B (N, C)``, per-cone ``A (N, C, K)`` of the silhouette distance term
+        (:func:`swarmpose.fitness.distance.distance_terms`; the plain reference with the reference backend)."""
+        prepared = self._bound()
+        p = self.model.check_poses(poses)
+        maps = self.distance_maps()
+        if self.backend.name == "reference":
+            return distance_terms_reference(self.model, p, prepared.cameras, maps, self.backend.near)
+        return distance_terms(self.model, p, prepared.R, prepared.t, prepared.cam, maps, self.backend.near)
+
+    def distance_score(self, poses: np.ndarray) -> np.ndarray:
+        """The silhouette distance score ``-mean_c (A_c + B_c)`` of ``poses (N, D)``, in ``[-2, 0]``."""
+        A, B, _ = self.distance_measure(poses)
+        return -(A + B).mean(axis=1)
+
+    def part_agreement(self, poses: np.ndarray) -> np.ndarray:
+        """Per-cone disagreement ``(N, K)`` in ``[0, 1]``: each cone's model-to-silhouette distance term
+        averaged over the views (0: the cone lies inside every observed silhouette). Loss detection reads it."""
+        _, _, parts = self.distance_measure(poses)
+        return parts.mean(axis=1)
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}(backend={self.backend.name!r}, options={self.default_options})"

@@ -19,6 +19,8 @@ apf-adaptive   1000   the apf set-up (200 x 5, Sigma as SPPSO, x31 fixed) with [
 apf-dr05       2000   [DR05] sec. 3.1, Fig. 9-10: 200 particles x 10 layers, adaptive (6.1), crossover
 aapso          4300   [SH17] sec. 4.2: 5 stages x 80 x 10 + 30 x 10; eq. 18
 aapso-fixed    4300   [SH17] as aapso with eq. 16 (the authors' earlier version, sec. 4.9)
+refined        1400   beyond the papers: apf-dr05 at 200 x 6, then a 200-evaluation pattern search
+                      (:mod:`swarmpose.optim.refine`); the tracker adds root velocity and limb recovery
 =============  =====  ===========================================================================
 
 Frame-rate scaling
@@ -49,6 +51,7 @@ from .aapso import StagedAAPSO
 from .apf import AnnealedParticleFilter, ParticleSet
 from .base import ConfigError, Constraint, Optimizer, ShapeError, check_rng, frozen_options
 from .pso import StagedPSO
+from .refine import Chain, PatternSearch
 from .schedules import (
     EDGE_ALL,
     aapso_stages,
@@ -66,6 +69,7 @@ __all__ = [
     "APFConfig",
     "OptimizerConfig",
     "PSOConfig",
+    "RefinedConfig",
     "describe",
     "get",
     "names",
@@ -364,6 +368,60 @@ class APFConfig(OptimizerConfig):
         )
 
 
+@dataclass(frozen=True, eq=False)
+class RefinedConfig(OptimizerConfig):
+    """A base search followed by a deterministic local refinement (:class:`~swarmpose.optim.refine.PatternSearch`).
+
+    Attributes
+    ----------
+    base : OptimizerConfig
+        The stochastic search (its carry is the chain's).
+    refine_budget : int
+        Evaluations of the pattern search.
+    refine_step : float
+        Its initial step per coordinate, in units of ``sigma`` (the search's spread at this rate).
+    refine_options : Mapping
+        Fitness options of the refinement.
+    recovery : Mapping
+        Settings of the tracker's loss detection and wide re-search (:mod:`swarmpose.track.recovery`),
+        read by the tracker only; empty: none.
+    """
+
+    base: OptimizerConfig | None = None
+    refine_budget: int = 200
+    refine_step: float = 0.5
+    refine_options: Mapping[str, Any] = field(default_factory=dict)
+    recovery: Mapping[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if not isinstance(self.base, OptimizerConfig):
+            raise ConfigError(f"{self.name}: base must be an optimiser configuration")
+        if isinstance(self.refine_budget, bool) or int(self.refine_budget) != self.refine_budget or self.refine_budget < 0:
+            raise ConfigError(f"{self.name}: refine_budget must be a whole number >= 0")
+        if not self.refine_step > 0:
+            raise ConfigError(f"{self.name}: refine_step must be > 0")
+        object.__setattr__(self, "refine_options", frozen_options(self.refine_options))
+        object.__setattr__(self, "recovery", frozen_options(self.recovery))
+
+    @property
+    def evals_per_frame(self) -> int:
+        return self.base.evals_per_frame + int(self.refine_budget)
+
+    def start(self, x0: Any, rng: np.random.Generator, constraint: Constraint | None = None,
+              carry: Any = None) -> Optimizer:
+        first = self.base.start(x0, rng, constraint=constraint, carry=carry)
+        if not self.refine_budget:
+            return first
+        step = self.refine_step * self.sigma
+
+        def refine(x: np.ndarray, _score: float) -> PatternSearch:
+            return PatternSearch(x, step, int(self.refine_budget), lower=self.lower, upper=self.upper,
+                                 constraint=constraint, fitness_options=self.refine_options)
+
+        return Chain(first, [refine])
+
+
 # --------------------------------------------------------------------------------------------------
 # model helpers
 # --------------------------------------------------------------------------------------------------
@@ -481,6 +539,19 @@ def _apf_dr05(model: Any, fps: float) -> APFConfig:
     )
 
 
+REF_REFINED = ("beyond the papers: Deutscher & Reid's APF ([DR05] sec. 3, 6) with a coordinate pattern search "
+               "(Kolda, Lewis & Torczon 2003) and per-limb loss detection with a wide re-search")
+
+
+def _refined(model: Any, fps: float) -> RefinedConfig:
+    """The default tracker: ``apf-dr05``'s search (200 x 6), a 200-evaluation pattern search on the same
+    fitness, and the tracker's recovery of lost limbs."""
+    base = dataclasses.replace(_apf_dr05(model, fps), n_layers=6)
+    return RefinedConfig(name="refined", reference=REF_REFINED, base=base, refine_budget=200, refine_step=0.5,
+                         recovery={"threshold": 0.05, "n_samples": 100, "n_rounds": 5, "refine_budget": 100},
+                         **_thesis_base(model, fps))
+
+
 def _aapso(name: str, reference: str, adaptive: bool) -> Callable[..., AAPSOConfig]:
     def factory(model: Any, fps: float, fps_scaling: str = "variance") -> AAPSOConfig:
         a = _model_arrays(model)
@@ -565,6 +636,9 @@ register(
 register("apf-dr05", _apf_dr05, reference=REF_APF_DR05, evals_per_frame=2000,
          summary="Deutscher & Reid's annealed particle filter with adaptive diffusion and crossover "
                  "(200 x 10); the most accurate on silhouettes here")
+register("refined", _refined, reference=REF_REFINED, evals_per_frame=1400,
+         summary="the default: Deutscher & Reid's APF (200 x 6), a local pattern search (200), and lost limbs "
+                 "searched again over their joint limits")
 register(
     "aapso",
     _aapso("aapso", REF_AAPSO, True),
@@ -589,6 +663,13 @@ register(
 def names() -> tuple[str, ...]:
     """All registered configuration names, in registration order."""
     return tuple(_REGISTRY)
+
+
+def default_motion(name: str) -> str:
+    """The motion model ``swarmpose track --motion auto`` gives an algorithm: for ``refined`` the root's
+    horizontal position carried on at its last velocity (not its height: a jump turns at its top), for the
+    papers' configurations the thesis's zero velocity (sec. 5.3.2)."""
+    return "constant-velocity@pelvis_tx+pelvis_ty" if name == "refined" else "zero-velocity"
 
 
 def default_fitness(name: str) -> str:

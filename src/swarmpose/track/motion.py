@@ -8,8 +8,8 @@ three papers uses: the centre moves on by ``d`` times the last step,
     x̃_t = x̂_{t-1} + d (x̂_{t-1} - x̂_{t-2}),    d = 1 unless given,
 
 and the spread ``Σ`` stays the same. ``constant-velocity[:d]@root_position`` (groups joined by
-``+``, as :meth:`swarmpose.body.model.BodyModel.groups` names them: ``root``, ``left_leg``, ...) moves
-only those parameters on and keeps the others at ``x̂_{t-1}``. It needs two tracked estimates, so the
+``+``, as :meth:`swarmpose.body.model.BodyModel.groups` names them: ``root``, ``left_leg``, ..., or single
+parameters by name: ``pelvis_tx``) moves only those parameters on and keeps the others at ``x̂_{t-1}``. It needs two tracked estimates, so the
 first two frames use zero velocity. A prediction that breaks the body model's hard priors (joint limits, collisions) is
 not used: that frame falls back to zero velocity. A carried particle set (the APF's, Deutscher & Reid
 eq. 9) moves by the same step, particle by particle where the moved particle stays valid.
@@ -48,10 +48,13 @@ class MotionModel:
             return None
         mask = np.zeros(model.n_params, dtype=bool)
         for g in self.groups:
+            if g in model.param_names:  # a single parameter, e.g. pelvis_tx
+                mask[model.param_index(g)] = True
+                continue
             try:
                 mask[model.group(g)] = True
             except KeyError as e:
-                raise ConfigError(f"motion model {str(self)!r}: {e.args[0]}") from None
+                raise ConfigError(f"motion model {str(self)!r}: {e.args[0]} (or a parameter's name)") from None
         return mask
 
     def predict(self, history: np.ndarray, constraint: Constraint | None = None,

@@ -440,6 +440,14 @@ def track_runs(sequence: str | Path, config: TrackConfig, runs: int, out_dir: Pa
                            scheduler=scheduler, progress=progress)
 
 
+def sum_recoveries(per_run: Sequence[dict[str, Any]]) -> dict[str, int]:
+    total: dict[str, int] = {}
+    for r in per_run:
+        for limb, n in (r.get("recoveries") or {}).items():
+            total[limb] = total.get(limb, 0) + int(n)
+    return total
+
+
 def _track_jobs(sequence: str | Path, config: TrackConfig, runs: int, out_dir: Path, setup: Any, *, resume: bool,
                 workers: int | None, scheduler: Any, progress: bool) -> dict[str, Any]:
     jobs = [Job(str(sequence), asdict(config), k, str(out_dir), resume, len(setup.frame_indices))
@@ -467,8 +475,11 @@ def _track_jobs(sequence: str | Path, config: TrackConfig, runs: int, out_dir: P
                   "d_max_mm": agg["worst"]["d_max"], "mmta": agg["worst"]["mmta"]},
         "d_mean_std_over_runs_mm": agg["d_mean_std_over_runs"],  # sample SD of the runs' D_mean
         "per_joint_mm": agg["per_joint"],
+        # frames on which a limb was found lost and searched again with success, over all runs
+        "recoveries": sum_recoveries(per_run),
         "per_run": [{"run": r["run"], "d_mean_mm": r["d_mean"], "d_max_mm": r["d_max"], "mmta": r["mmta"],
-                     "mmtp_mm": r["mmtp"], "sigma_mm": r["sigma"], "frames_per_s": r["frames_per_s"]}
+                     "mmtp_mm": r["mmtp"], "sigma_mm": r["sigma"], "frames_per_s": r["frames_per_s"],
+                     "recoveries": r.get("recoveries", {})}
                     for r in sorted(per_run, key=lambda r: r["run"])],
         "sequence": sequence_location(sequence),
         "fitness": config.fitness_kind,

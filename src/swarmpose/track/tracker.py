@@ -45,6 +45,11 @@ from swarmpose.errors import ConfigError, DataError, FormatError
 from swarmpose.io.files import load_npz, read_json_object
 from swarmpose.metrics import track_errors, valid_frames
 from swarmpose.track.motion import parse_motion
+from swarmpose.track.progress import RunProgress
+from swarmpose.track.recovery import LIMBS, Recovery
+from swarmpose.track.timing import PartTimer, TimedFitness
+
+LIMB_NAMES = tuple(LIMBS)
 
 __all__ = ["TrackConfig", "RunResult", "prepare_track", "run_tracker", "TrackSetup", "versions", "model_identity",
            "sequence_identity", "sequence_location", "ground_truth_identity", "observation_identity"]
@@ -75,11 +80,14 @@ class TrackConfig:
     downsample: int = 1
     seed: int = 0
     start: str = "ik"  # "ik": IK fit of the first processed frame's ground truth
-    optim_variant: str = ""  # see swarmpose.experiments.suites.apply_variant
+    optim_variant: str = ""  # see swarmpose.optim.variants.apply_variant
     fitness_options: str = ""  # "key=value,..." merged over each stage's options
     feature_options: str = ""  # "edge_threshold=8,..." (swarmpose.features.parse_feature_options)
-    motion: str = "zero-velocity"  # or "constant-velocity[:D][@GROUP+...]" (swarmpose.track.motion)
+    motion: str = "auto"  # the algorithm's (optim.registry.default_motion), "zero-velocity" or
+    #                       "constant-velocity[:D][@GROUP+...]" (swarmpose.track.motion)
     max_frames: int | None = None  # only the first N frames at this rate (a quick try); None: all
+    subject: str = ""  # a subject file (swarmpose subject) instead of the sequence's own
+    height_mm: float | None = None  # or a subject from this stature (body.anthropometry)
 
     def __post_init__(self) -> None:
         if not self.fps > 0:
@@ -90,13 +98,21 @@ class TrackConfig:
                     or int(n) != n):
                 raise ConfigError(f"max_frames must be a whole number >= 1 (or None for all), got {n!r}")
             object.__setattr__(self, "max_frames", int(n))
+        if self.subject and self.height_mm is not None:
+            raise ConfigError("give a subject file or a height, not both")
+        if self.height_mm is not None:
+            from swarmpose.body.anthropometry import standing_joints15
+
+            standing_joints15(self.height_mm)  # the range check, now
+        if self.subject and not Path(self.subject).is_file():
+            raise ConfigError(f"subject file {self.subject} does not exist (write one with `swarmpose subject`)")
         if self.downsample not in (1, 2, 4, 8):
             raise ConfigError(f"downsample must be 1, 2, 4 or 8, got {self.downsample}")
         if self.fitness not in ("auto", *IMAGE_FITNESS, *MARKER_FITNESS):
             raise ConfigError(f"unknown fitness {self.fitness!r}; known: auto, "
                               f"{', '.join(IMAGE_FITNESS + MARKER_FITNESS)}")
-        from swarmpose.experiments.suites import parse_fitness_options
         from swarmpose.features import parse_feature_options
+        from swarmpose.fitness.base import parse_fitness_options
 
         # fail early, before anything is written: options, features and backend for this fitness
         options = parse_fitness_options(self.fitness_options)
@@ -119,13 +135,17 @@ class TrackConfig:
             from swarmpose.fitness.torch_backend import import_torch
 
             import_torch()  # the install hint now, not in a worker
+        if self.motion == "auto":
+            from swarmpose.optim.registry import default_motion
+
+            object.__setattr__(self, "motion", default_motion(self.algo))
         # canonical text, so that "constant-velocity" and "constant-velocity:1" resume each other
         object.__setattr__(self, "motion", str(parse_motion(self.motion)))
 
     def optimizer(self, model: BodyModel):
         """The named optimiser configuration for ``model`` at this frame rate, variant applied."""
         from swarmpose import optim
-        from swarmpose.experiments.suites import apply_variant
+        from swarmpose.optim.variants import apply_variant
 
         return apply_variant(optim.get(self.algo, model=model, fps=self.fps), self.optim_variant)
 
@@ -208,13 +228,21 @@ class TrackSetup:
         return float(np.nanmean(self.ik_error_mm[self.valid].mean(axis=1)))
 
 
-def _subject_for(seq: Any, spec) -> Subject:
-    """The subject from the source BVH skeleton when there is one, else from the 15-joint ground truth.
+def _subject_for(seq: Any, spec, config: TrackConfig | None = None) -> Subject:
+    """The subject: the file or stature ``config`` names, else from the source BVH skeleton when there is
+    one, else from the 15-joint ground truth.
 
     Cones come from the sequence's subject measurements when it has them (HumanEva's rules).
     """
-    from swarmpose.body.subject import subject_from_clip, subject_from_joints
-    from swarmpose.io.mocap import load_clip
+    if config is not None and config.subject:
+        return Subject.load(config.subject)
+    if config is not None and config.height_mm is not None:
+        from swarmpose.body.anthropometry import subject_from_height
+
+        return subject_from_height(spec, config.height_mm,
+                                   measurements=getattr(seq, "subject_measurements", None))
+    from swarmpose.body.subject import subject_from_joints
+    from swarmpose.io.mocap import load_clip, subject_from_clip
 
     measurements = getattr(seq, "subject_measurements", None)
     clip_path = getattr(seq, "source_clip", None)
@@ -322,7 +350,10 @@ def _ik_cache_key(sequence_path: str | Path, config: TrackConfig) -> str:
     """What the cached IK fit (``ik.npz``) and ``subject.json`` of a results folder depend on."""
     return json.dumps({"sequence": sequence_identity(sequence_path), "model": config.model,
                        "model_spec_sha1": model_identity(config.model), "variant": config.variant,
-                       "fps": config.fps, "ik": "smooth start, polished floor"}, sort_keys=True)
+                       "fps": config.fps, "ik": "smooth start, polished floor",
+                       **({"subject": _file_identity(Path(config.subject))} if config.subject else {}),
+                       **({"height_mm": config.height_mm} if config.height_mm is not None else {})},
+                      sort_keys=True)
 
 
 def _read_ik_cache(out_dir: Path | None, key: str, frames: np.ndarray, n_params: int):
@@ -371,11 +402,12 @@ def prepare_track(sequence_path: str | Path, config: TrackConfig, out_dir: Path 
         times = np.asarray(seq.frame_times)[frames]
         key = _ik_cache_key(sequence_path, config)
         cached = _read_ik_cache(out_dir, key, frames, len(spec.parameters))
-        subject = Subject.load(out_dir / "subject.json") if cached is not None else _subject_for(seq, spec)
+        subject = (Subject.load(out_dir / "subject.json") if cached is not None
+                   else _subject_for(seq, spec, config))
         model = BodyModel(spec, subject, config.variant)
         parse_motion(config.motion).mask(model)  # unknown parameter groups fail here, before any run
         algo = config.optimizer(model)  # unknown algorithm or variant: before the IK fit is written
-        from swarmpose.experiments.suites import parse_fitness_options
+        from swarmpose.fitness.base import parse_fitness_options
 
         cones = parse_fitness_options(config.fitness_options).get("edge_cones")
         if cones is not None:
@@ -416,6 +448,14 @@ class RunResult:
     evaluations: np.ndarray
     seconds: np.ndarray
     errors: dict[str, Any] = field(default_factory=dict)
+    recovered: np.ndarray | None = None  # (T, limbs) bool: frames where a lost limb was searched again and kept
+    part_seconds: dict[str, float] = field(default_factory=dict)  # this session's wall time per part (timing.PARTS)
+
+    @property
+    def recoveries(self) -> dict[str, int]:
+        """Frames on which each limb was found lost and searched again with success."""
+        r = np.zeros((0, len(LIMB_NAMES)), bool) if self.recovered is None else self.recovered
+        return {limb: int(r[:, j].sum()) for j, limb in enumerate(LIMB_NAMES)}
 
     @property
     def frames_per_s(self) -> float:
@@ -473,54 +513,55 @@ def run_tracker(
     diagnostics in ``scripts/diagnose_tracking.py oracle`` use it to swap in ideal silhouettes or edges.
     """
     from swarmpose import optim
-    from swarmpose.experiments.suites import parse_fitness_options
     from swarmpose.features import parse_feature_options
+    from swarmpose.fitness.base import parse_fitness_options
     from swarmpose.io.sequence import open_sequence
 
     cfg = setup.config
     model = setup.model
     algo = cfg.optimizer(model)
+    recovery = Recovery.from_settings(getattr(algo, "recovery", {}))
+    if recovery is not None and cfg.fitness_kind not in IMAGE_FITNESS:
+        recovery = None  # loss detection reads the silhouettes
     motion = parse_motion(cfg.motion)
     motion_mask = motion.mask(model)
     extra_options = parse_fitness_options(cfg.fitness_options)
     feature_options = parse_feature_options(cfg.feature_options)
-    constraint = HardPriors(model).valid
-    fitness = _make_fitness(setup)
+    timer = PartTimer()
+    constraint = timer.wrap("priors", HardPriors(model).valid)
+    fitness = TimedFitness(_make_fitness(setup), timer)
     T, D = len(setup.frame_indices), model.n_params
 
     params = np.zeros((T, D))
     scores = np.zeros(T)
     evals = np.zeros(T, dtype=np.int64)
     seconds = np.zeros(T)
+    recovered = np.zeros((T, len(LIMB_NAMES)), dtype=bool)
     rng = np.random.default_rng(run_seed(cfg.seed, run))
     x_prev = setup.ik_params[0].copy() if cfg.start == "ik" else model.zero_pose()
     carry = None
     start_k = 0
     run_dir = None if out_dir is None else out_dir / f"run_{run:03d}"
-    progress_file = None if run_dir is None else run_dir / "progress.npz"
-    if run_dir is not None:
+    store = None if run_dir is None else RunProgress(run_dir, T, D, len(LIMB_NAMES))
+    state = None
+    if store is not None:
         run_dir.mkdir(parents=True, exist_ok=True)
-        if progress_file.is_file():
+        if store.exists():
             if not resume:
-                raise ConfigError(f"{progress_file} exists: pass --resume to continue it, or use a new --out")
+                raise ConfigError(f"{store.state_file} exists: pass --resume to continue it, or use a new --out")
             try:
-                z = load_npz(progress_file, ("done", "params", "scores", "evaluations", "seconds", "x_prev",
-                                             "rng_state"))
+                state = store.load()
             except FormatError as exc:
-                raise FormatError(f"{exc}; delete it to track run {run} afresh") from None
-            try:
-                start_k = int(z["done"])
-                if not 0 <= start_k <= T or z["params"].shape != params.shape:
-                    raise ValueError(f"{start_k} frames done of {T}, params {z['params'].shape}")
-                params[:start_k], scores[:start_k] = z["params"][:start_k], z["scores"][:start_k]
-                evals[:start_k], seconds[:start_k] = z["evaluations"][:start_k], z["seconds"][:start_k]
-                x_prev = z["x_prev"].copy()
-                rng.bit_generator.state = json.loads(str(z["rng_state"]))
-                if "carry_x" in z:
-                    carry = optim.ParticleSet(z["carry_x"].copy(), z["carry_w"].copy())
-            except (ValueError, TypeError, KeyError) as exc:
-                raise FormatError(f"does not fit this run ({exc}); delete it to track run {run} afresh",
-                                  path=progress_file) from None
+                raise FormatError(str(exc).replace("track the run afresh", f"track run {run} afresh")) from None
+            start_k = state.done
+            params[:start_k], scores[:start_k] = state.params, state.scores
+            evals[:start_k], seconds[:start_k] = state.evaluations, state.seconds
+            recovered[:start_k] = state.recovered
+            x_prev = state.x_prev
+            rng.bit_generator.state = state.rng_state
+            if state.carry is not None:
+                carry = optim.ParticleSet(*state.carry)
+        store.start(state)
 
     seq = open_sequence(setup.sequence_path)
     backgrounds = seq.backgrounds() if cfg.fitness_kind in IMAGE_FITNESS else None
@@ -530,48 +571,85 @@ def run_tracker(
                 break
             t0 = time.perf_counter()
             k = int(setup.frame_indices[i])
-            observation = _frame_observation(seq, k, cfg.fitness_kind, cfg.downsample, backgrounds, feature_options)
+            with timer.part("features"):
+                observation = _frame_observation(seq, k, cfg.fitness_kind, cfg.downsample, backgrounds,
+                                                 feature_options)
             fitness.bind(observation if observe is None else observe(k, observation))
             if i == start_k:  # compile the fitness kernels (numba: seconds on a fresh install) off the clock,
                 tw = time.perf_counter()  # so that frames/s is the tracking speed; the score is not used
-                fitness.evaluate(x_prev[None])
+                fitness._fitness.evaluate(x_prev[None])
                 t0 += time.perf_counter() - tw
-            x_pred = motion.predict(params[:i] if i >= 2 else x_prev[None], constraint, motion_mask)
-            step = x_pred - x_prev
-            if carry is not None and np.any(step):
-                carry = optim.ParticleSet(motion.move_particles(carry.particles, step, constraint), carry.weights)
-            opt = algo.start(x_pred, rng, constraint=constraint, carry=carry)
-            while not opt.done:
-                poses = opt.ask()
-                options = {**opt.fitness_options, **extra_options} if extra_options else opt.fitness_options
-                opt.tell(fitness.evaluate(poses, options))
+            with timer.part("motion"):
+                x_pred = motion.predict(params[:i] if i >= 2 else x_prev[None], constraint, motion_mask)
+                step = x_pred - x_prev
+                if carry is not None and np.any(step):
+                    carry = optim.ParticleSet(motion.move_particles(carry.particles, step, constraint),
+                                              carry.weights)
+            with timer.part("optimiser"):
+                opt = algo.start(x_pred, rng, constraint=constraint, carry=carry)
+                while not opt.done:
+                    poses = opt.ask()
+                    options = {**opt.fitness_options, **extra_options} if extra_options else opt.fitness_options
+                    opt.tell(fitness.evaluate(poses, options))
             best = opt.best
             x_prev = np.array(best.x, dtype=np.float64)
+            n_evals = opt.evaluations
+            score = best.score
             carry = opt.carry() if hasattr(opt, "carry") else None
-            params[i], scores[i], evals[i] = x_prev, best.score, opt.evaluations
+            if recovery is not None:
+                with timer.part("recovery"):
+                    rec = recovery.run(fitness, model, x_prev, rng, constraint, algo.sigma, extra_options or None)
+                n_evals += rec.evaluations
+                if rec.recovered:
+                    x_prev = rec.x
+                    score = float(fitness.evaluate(x_prev[None], extra_options or None)[0])
+                    n_evals += 1
+                    carry = _recentre(carry, x_prev, [model.group(LIMBS[limb][1]) for limb in rec.recovered],
+                                      model.lower, model.upper)
+                for limb in rec.recovered:
+                    recovered[i, LIMB_NAMES.index(limb)] = True
+            params[i], scores[i], evals[i] = x_prev, score, n_evals
             seconds[i] = time.perf_counter() - t0
-            if progress_file is not None:
-                extra = {} if carry is None else {"carry_x": carry.particles, "carry_w": carry.weights}
-                _atomic_savez(progress_file, done=i + 1, params=params, scores=scores, evaluations=evals,
-                              seconds=seconds, x_prev=x_prev,
-                              rng_state=np.array(json.dumps(rng.bit_generator.state)), **extra)
+            if store is not None:
+                with timer.part("writing"):
+                    store.save(i, params=params[i], score=scores[i], evaluations=evals[i], seconds=seconds[i],
+                               recovered=recovered[i], x_prev=x_prev, rng_state=rng.bit_generator.state,
+                               carry=None if carry is None else (carry.particles, carry.weights))
             if progress is not None:
                 progress(i + 1, T)
     finally:
         seq.close()
+        if store is not None:
+            store.close()
 
     done = int(np.count_nonzero(evals))
     joints = model.joints15(params[:done]) if done else np.zeros((0, 15, 3))
     result = RunResult(run=run, params=params[:done], joints=joints, scores=scores[:done],
-                       evaluations=evals[:done], seconds=seconds[:done])
+                       evaluations=evals[:done], seconds=seconds[:done], recovered=recovered[:done],
+                       part_seconds={k: round(v, 6) for k, v in timer.seconds.items()})
     if done == T:
         errs = track_errors(joints, setup.gt_joints)  # frames without valid ground truth are not scored
         d_all = errs.d_per_frame
         result.errors = {**errs.summary(), "frames_per_s": result.frames_per_s,
-                         "evals_per_frame": int(evals.max()), "ik_floor_mm": setup.ik_floor_mm}
+                         "evals_per_frame": int(evals.max()), "ik_floor_mm": setup.ik_floor_mm,
+                         "recoveries": result.recoveries, "part_seconds": result.part_seconds,
+                         "frames_timed": int(done - start_k)}
         if run_dir is not None:
             _write_run(run_dir, setup, result, d_all)
     return result
+
+
+def _recentre(carry: Any, x: np.ndarray, groups: list[np.ndarray], lower: np.ndarray, upper: np.ndarray) -> Any:
+    """Move the carried particle set's recovered parameters onto ``x``, keeping their spread (a recovered
+    limb would otherwise be lost again by the next frame's search, which starts from the carried set)."""
+    if carry is None:
+        return None
+    from swarmpose import optim
+
+    particles = np.array(carry.particles, dtype=np.float64)
+    for idx in groups:
+        particles[:, idx] += x[idx] - np.average(particles[:, idx], axis=0, weights=carry.weights)
+    return optim.ParticleSet(np.clip(particles, lower, upper), carry.weights)
 
 
 def _write_run(run_dir: Path, setup: TrackSetup, result: RunResult, d_per_frame: np.ndarray) -> None:
@@ -579,7 +657,8 @@ def _write_run(run_dir: Path, setup: TrackSetup, result: RunResult, d_per_frame:
 
     _atomic_savez(run_dir / "track.npz", params=result.params, joints=result.joints, scores=result.scores,
                   evaluations=result.evaluations, seconds=result.seconds, frame_indices=setup.frame_indices,
-                  d_per_frame=d_per_frame, param_names=np.array(setup.model.param_names))
+                  d_per_frame=d_per_frame, param_names=np.array(setup.model.param_names),
+                  recovered=result.recovered, limbs=np.array(LIMB_NAMES))
     _atomic_savez(run_dir / "joints.npz", joints=result.joints, gt_joints=setup.gt_joints,
                   frame_times=setup.frame_times,
                   world_from_source=setup.world_from_source)

@@ -1,0 +1,90 @@
+"""A subject from stature alone: joint heights and widths as fractions of the height ``H``.
+
+Segment proportions of Drillis & Contini (1966) as tabulated by Winter (2009), *Biomechanics and Motor
+Control of Human Movement*, 4th ed., Fig. 4.1 (heights above the floor, standing):
+
+==========================  ========  =====================================================
+landmark                    fraction  used for
+==========================  ========  =====================================================
+top of the head             1.000     ``head_top``
+shoulder (acromion)         0.818     shoulders; the thorax (base of the neck) between them
+elbow                       0.630     elbows (upper arm 0.188 H; Winter's segment: 0.186 H)
+wrist                       0.485     wrists (forearm 0.145 H; Winter: 0.146 H)
+hip (greater trochanter)    0.530     hip joints; the pelvis between them
+knee                        0.285     knees (thigh 0.245 H; Winter: 0.245 H)
+ankle                       0.039     ankles (leg 0.246 H; Winter: 0.246 H)
+shoulder width              0.259     the shoulder joints, ``0.259 H - 2 x 0.022 H`` apart
+                                      (the joint centres lie inside the acromions)
+hip width                   0.191     the hip joints, ``0.191 H / 2`` apart (their centres lie
+                                      halfway in from the trochanters)
+==========================  ========  =====================================================
+
+The thorax of the 15-joint skeleton is the base of the neck (:func:`swarmpose.io.mocap.cmu_skeleton_map`):
+here at shoulder height, midway between the shoulders. These are population means; a real person's
+proportions differ from them by several per cent (docs/accuracy.md measures it on the shared subjects).
+The subject is built by :func:`swarmpose.body.subject.subject_from_joints` from the standing pose, so the
+cones are sized as for any subject without measurements.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from swarmpose.body.measurements import SubjectMeasurements
+from swarmpose.body.spec import BodySpec, Subject
+from swarmpose.body.subject import subject_from_joints
+from swarmpose.errors import ConfigError
+from swarmpose.joints import JOINT_INDEX
+
+__all__ = ["HEIGHT_FRACTIONS", "WIDTH_FRACTIONS", "standing_joints15", "subject_from_height"]
+
+#: Heights above the floor as fractions of stature (Winter 2009, Fig. 4.1).
+HEIGHT_FRACTIONS = {"head_top": 1.000, "shoulder": 0.818, "elbow": 0.630, "wrist": 0.485, "hip": 0.530,
+                    "knee": 0.285, "ankle": 0.039}
+#: Widths as fractions of stature (Winter 2009, Fig. 4.1) and the joint-centre insets used here.
+WIDTH_FRACTIONS = {"shoulder": 0.259, "hip": 0.191, "shoulder_inset": 0.022}
+
+#: Statures accepted, mm (a check against a value in metres or centimetres).
+HEIGHT_RANGE_MM = (800.0, 2500.0)
+
+
+def standing_joints15(height_mm: float) -> np.ndarray:
+    """The 15 joints ``(15, 3)`` of a person of this stature standing upright, arms hanging, facing +x
+    (the body model's frame: x forward, y left, z up), feet on the floor ``z = 0``.
+
+    Raises
+    ------
+    ConfigError
+        A height outside 800-2500 mm.
+    """
+    h = float(height_mm)
+    lo, hi = HEIGHT_RANGE_MM
+    if not lo <= h <= hi:
+        raise ConfigError(f"height must be a stature in millimetres ({lo:.0f}-{hi:.0f}), got {height_mm!r}")
+    f, w = HEIGHT_FRACTIONS, WIDTH_FRACTIONS
+    shoulder_y = 0.5 * (w["shoulder"] - 2 * w["shoulder_inset"]) * h
+    hip_y = 0.25 * w["hip"] * h
+    j = np.zeros((15, 3))
+
+    def put(name: str, y: float, z: float) -> None:
+        j[JOINT_INDEX[name]] = (0.0, y, z * h)
+
+    put("head_top", 0.0, f["head_top"])
+    put("thorax", 0.0, f["shoulder"])
+    put("pelvis", 0.0, f["hip"])
+    for side, s in (("l", 1.0), ("r", -1.0)):
+        for joint in ("shoulder", "elbow", "wrist"):
+            put(f"{side}_{joint}", s * shoulder_y, f[joint])
+        for joint in ("hip", "knee", "ankle"):
+            put(f"{side}_{joint}", s * hip_y, f[joint])
+    return j
+
+
+def subject_from_height(spec: BodySpec, height_mm: float, *, name: str | None = None,
+                        measurements: SubjectMeasurements | None = None) -> Subject:
+    """A subject of the body model ``spec`` for a person of stature ``height_mm`` (mm), by Winter's ratios."""
+    subject = subject_from_joints(spec, standing_joints15(height_mm)[None],
+                                  name=name or f"stature-{float(height_mm):.0f}mm", measurements=measurements)
+    note = subject.source.split("; ", 1)[-1]
+    return Subject(name=subject.name, offsets=subject.offsets, cones=subject.cones,
+                   source=f"stature {float(height_mm):.0f} mm, Winter (2009) Fig. 4.1 proportions; {note}")

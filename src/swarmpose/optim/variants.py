@@ -1,0 +1,100 @@
+"""Variants of a named optimiser configuration (``--variant``), each stating its budget."""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+from .base import ConfigError
+
+__all__ = ["apply_variant"]
+
+
+def apply_variant(config: Any, variant: str) -> Any:
+    """Modify a named optimiser configuration; every variant states its budget.
+
+    * ``budget=B`` (SPPSO family): every stage's iterations × B/1000 (thesis 6.4 gives only the
+      totals 1000/2000/4000; scaling iterations keeps the swarm sizes of Table 6.1).
+    * ``stage2=PxI``: the last stage runs P particles × I iterations (thesis 6.8, Table 6.4).
+    * ``global=PxI`` (AAPSO): one stage over all parameters (Sharifi et al. Table 4: 400 × 10).
+    * ``hard``: each stage after the first holds the earlier stages' parameters fixed (σ scale 0)
+      instead of searching them at σ/10 (Sharifi et al. Table 5; thesis 6.6 hard partitioning).
+    * ``apf=PxL`` (annealed particle filters): P particles × L layers (Sharifi et al. sec. 4.10 ran
+      Deutscher & Reid's APF with 700 × 5).
+    * ``spread=K``: the search's per-parameter sigma times K.
+    * ``refine=B`` (refined configurations): B pattern-search evaluations (0: none); ``recovery=off``: no
+      loss detection; several variants are joined by ``+`` (``apf=200x5+refine=0``).
+    """
+    if not variant:
+        return config
+    if "+" in variant:
+        for part in variant.split("+"):
+            config = apply_variant(config, part)
+        return config
+    head = variant.partition("=")[0].strip()
+    if head in ("refine", "recovery"):
+        if not hasattr(config, "refine_budget"):
+            raise ConfigError(f"variant {variant!r} needs a refined configuration, {config.name!r} is not one")
+        value = variant.partition("=")[2].strip()
+        if head == "refine":
+            if not value.isdigit():
+                raise ConfigError(f"variant {variant!r}: expected refine=B, a whole number of evaluations")
+            return dataclasses.replace(config, refine_budget=int(value))
+        if value != "off":
+            raise ConfigError(f"variant {variant!r}: expected recovery=off")
+        return dataclasses.replace(config, recovery={})
+    if hasattr(config, "base") and hasattr(config, "refine_budget"):
+        return dataclasses.replace(config, base=apply_variant(config.base, variant))
+    if head == "spread":
+        try:
+            k = float(variant.partition("=")[2])
+        except ValueError:
+            k = float("nan")
+        if not k > 0:
+            raise ConfigError(f"variant {variant!r}: expected spread=K with K > 0 (the search's sigma times K)")
+        return dataclasses.replace(config, sigma=config.sigma * k)
+    from .staged import Stage
+
+    key, sep, value = (t.strip() for t in variant.partition("="))
+    forms = {"budget": "budget=B, e.g. budget=2000", "stage2": "stage2=PxI, e.g. stage2=40x20",
+             "global": "global=PxI, e.g. global=400x10", "apf": "apf=PxL, e.g. apf=700x5", "hard": "hard"}
+    if key not in forms:
+        raise ConfigError(f"unknown variant {variant!r} (budget=B, stage2=PxI, global=PxI, hard, apf=PxL)")
+    if (key == "hard") == bool(sep):
+        raise ConfigError(f"variant {variant!r}: expected {forms[key]}")
+
+    def sizes() -> tuple[int, int]:
+        parts = value.lower().split("x")
+        if len(parts) != 2 or not all(p.strip().isdigit() and int(p) >= 1 for p in parts):
+            raise ConfigError(f"variant {variant!r}: expected {forms[key]} (two whole numbers >= 1)")
+        return int(parts[0]), int(parts[1])
+
+    if key == "apf":
+        if not hasattr(config, "n_layers"):
+            raise ConfigError(f"variant {variant!r} needs an annealed particle filter, {config.name!r} is not one")
+        p, layers = sizes()
+        return dataclasses.replace(config, n_particles=p, n_layers=layers)
+    stages = getattr(config, "stages", None)
+    if stages is None:
+        raise ConfigError(f"variant {variant!r} needs a staged configuration, {config.name!r} has no stages")
+    if key == "budget":
+        if not value.isdigit() or int(value) < 1000 or int(value) % 1000:
+            raise ConfigError(f"variant {variant!r}: B must be 1000, 2000, 3000... (every stage's iterations x B/1000: "
+                              f"B evaluations per frame for the thesis's 1000-evaluation configurations)")
+        factor = int(value) / 1000.0
+        new = tuple(dataclasses.replace(s, n_iterations=int(round(s.n_iterations * factor))) for s in stages)
+    elif key == "stage2":
+        p, i = sizes()
+        new = (*stages[:-1], dataclasses.replace(stages[-1], n_particles=p, n_iterations=i))
+    elif key == "global":
+        import numpy as np
+
+        p, i = sizes()
+        active = np.logical_or.reduce([s.active for s in stages])
+        # the whole body at once: the last stage's fitness (SPPSO's first stage scores only the torso's edges)
+        new = (Stage("global", active, np.ones(active.shape[0]), p, i, dict(stages[-1].fitness_options)),)
+    else:  # hard
+        first = stages[0].active
+        new = (stages[0],) + tuple(
+            dataclasses.replace(s, active=s.active & ~first, sigma_scale=s.sigma_scale) for s in stages[1:])
+    return dataclasses.replace(config, stages=new)

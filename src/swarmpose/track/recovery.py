@@ -1,0 +1,129 @@
+"""Loss detection and recovery of limbs (design.md sec. 7).
+
+After a frame's search the tracker asks the fitness how well each cone is explained by the observation
+(:meth:`~swarmpose.fitness.image.ImageFitness.part_agreement`: the cone's model-to-silhouette distance
+term, averaged over the views; 0 when the cone lies inside every observed silhouette). A limb whose
+worst cone is above ``threshold`` counts as *lost*: its parameters are searched again that frame over
+their whole joint-limit box (:class:`~swarmpose.optim.refine.BoxSearch`, the rest of the body held),
+then polished by a short pattern search of the same parameters. The new limb is kept only when the
+frame's fitness prefers it. The optimisers know nothing of limbs: they get a mask and bounds.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from swarmpose.errors import ConfigError
+from swarmpose.optim.refine import BoxSearch, PatternSearch
+
+__all__ = ["LIMBS", "Recovery", "RecoveryResult"]
+
+#: Limb name -> (its cones, its parameter group) in the shipped body models.
+LIMBS: dict[str, tuple[tuple[str, ...], str]] = {
+    "left_arm": (("l_upper_arm", "l_lower_arm"), "left_arm"),
+    "right_arm": (("r_upper_arm", "r_lower_arm"), "right_arm"),
+    "left_leg": (("l_thigh", "l_calf"), "left_leg"),
+    "right_leg": (("r_thigh", "r_calf"), "right_leg"),
+}
+
+
+@dataclass
+class RecoveryResult:
+    """What one frame's recovery did."""
+
+    x: np.ndarray
+    evaluations: int = 0
+    lost: list[str] = field(default_factory=list)
+    recovered: list[str] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class Recovery:
+    """Per-limb loss detection and wide re-search.
+
+    Attributes
+    ----------
+    threshold : float
+        A limb is lost when one of its cones' disagreement (``[0, 1]``) is above this.
+    n_samples, n_rounds : int
+        The box search: ``1 + n_samples * n_rounds`` evaluations per lost limb.
+    refine_budget : int
+        Pattern-search evaluations on the limb's parameters after the box search.
+    terms : str
+        The fitness terms the search and the acceptance use: ``"distance"`` (default), the silhouette
+        distance term, which still rises towards an arm 50-100 mm away where the overlap terms are flat.
+    """
+
+    threshold: float = 0.05
+    n_samples: int = 100
+    n_rounds: int = 5
+    refine_budget: int = 100
+    terms: str = "distance"
+
+    @classmethod
+    def from_settings(cls, settings: Mapping[str, Any]) -> Recovery | None:
+        """From an optimiser configuration's ``recovery`` mapping (``None`` when it is empty)."""
+        if not settings:
+            return None
+        unknown = set(settings) - {"threshold", "n_samples", "n_rounds", "refine_budget", "terms"}
+        if unknown:
+            raise ConfigError(f"unknown recovery setting(s) {sorted(unknown)}")
+        return cls(**dict(settings))
+
+    def limbs(self, model: Any) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """Limb -> (cone indices, parameter indices) for the limbs ``model`` has."""
+        names = model.cone_arrays.names
+        out = {}
+        for limb, (cones, group) in LIMBS.items():
+            if all(c in names for c in cones) and group in model.groups:
+                out[limb] = (np.array([names.index(c) for c in cones]), np.asarray(model.group(group)))
+        return out
+
+    def lost(self, fitness: Any, model: Any, x: np.ndarray) -> list[str]:
+        """The limbs of pose ``x`` whose worst cone disagrees with the observation by more than ``threshold``."""
+        parts = fitness.part_agreement(np.asarray(x, np.float64)[None])[0]
+        return [limb for limb, (cones, _) in self.limbs(model).items() if parts[cones].max() > self.threshold]
+
+    def run(self, fitness: Any, model: Any, x: np.ndarray, rng: np.random.Generator,
+            constraint: Callable[[np.ndarray], np.ndarray] | None, sigma: np.ndarray,
+            options: Mapping[str, Any] | None = None) -> RecoveryResult:
+        """Detect the lost limbs of ``x`` and search each again; returns the (possibly) improved pose.
+
+        ``sigma``: the search's per-parameter spread at this frame rate (the polishing step is half of it).
+        """
+        x = np.array(x, dtype=np.float64)
+        result = RecoveryResult(x=x)
+        options = {**dict(options or {}), "terms": self.terms}
+        limbs = self.limbs(model)
+        for limb in self.lost(fitness, model, x):
+            result.lost.append(limb)
+            mask = np.zeros(x.size, bool)
+            mask[limbs[limb][1]] = True
+            search = BoxSearch(x, mask, model.lower, model.upper, rng, n_samples=self.n_samples,
+                               n_rounds=self.n_rounds, constraint=constraint)
+            before = None
+            while not search.done:
+                poses = search.ask()
+                s = fitness.evaluate(poses, options)
+                if before is None:
+                    before = float(s[0]) if np.isfinite(s[0]) else -np.inf
+                search.tell(s)
+            result.evaluations += search.evaluations
+            cand, score = search.best.x, search.best.score
+            if self.refine_budget:
+                step = np.where(mask, 0.5 * np.asarray(sigma), 0.0)
+                ps = PatternSearch(cand, step, self.refine_budget, lower=model.lower, upper=model.upper,
+                                   constraint=constraint)
+                while not ps.done:
+                    ps.tell(fitness.evaluate(ps.ask(), options))
+                result.evaluations += ps.evaluations
+                cand, score = ps.best.x, ps.best.score
+            if score > before:
+                x = np.array(cand)
+                result.recovered.append(limb)
+        result.x = x
+        return result

@@ -1,0 +1,62 @@
+"""Loss detection and recovery on a constructed frame: one arm 90 degrees off."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from swarmpose.body.model import load_model
+from swarmpose.body.priors import HardPriors
+from swarmpose.errors import ConfigError
+from swarmpose.fitness import make_fitness
+from swarmpose.fitness.scene import demo_cameras, demo_frame
+from swarmpose.track.recovery import Recovery
+
+
+@pytest.fixture(scope="module")
+def setup():
+    model = load_model("balan31")
+    pose = model.zero_pose()
+    pose[5] = 1000.0
+    pose[model.param_index("l_shoulder_abd")] = 0.4
+    pose[model.param_index("r_shoulder_abd")] = 0.6
+    pose[model.param_index("r_elbow_flex")] = 0.5
+    frame = demo_frame(model, pose, demo_cameras(4, width=322, height=242), rng=np.random.default_rng(3))
+    fitness = make_fitness("silhouette_edge", model).bind(frame)
+    return model, pose, fitness
+
+
+def arm_error(model, x, truth, side="r"):
+    j = [model.spec.joints15.index(f"{side}_{n}") for n in ("elbow", "wrist")]
+    return np.linalg.norm(model.joints15(x[None])[0, j] - model.joints15(truth[None])[0, j], axis=1).max()
+
+
+def test_a_lost_arm_is_found_and_brought_back(setup):
+    model, truth, fitness = setup
+    lost = truth.copy()
+    lost[model.param_index("r_shoulder_abd")] += np.radians(90)  # the right arm swung 90 degrees off
+    assert arm_error(model, lost, truth) > 300
+    rec = Recovery()
+    assert rec.lost(fitness, model, truth) == []
+    assert rec.lost(fitness, model, lost) == ["right_arm"]
+    sigma = model.sigma * 3.0
+    out = rec.run(fitness, model, lost, np.random.default_rng(0), HardPriors(model).valid, sigma)
+    assert out.lost == ["right_arm"] and out.recovered == ["right_arm"]
+    assert out.evaluations == 1 + rec.n_samples * rec.n_rounds + rec.refine_budget
+    assert arm_error(model, out.x, truth) < 100
+    others = np.setdiff1d(np.arange(model.n_params), model.group("right_arm"))
+    np.testing.assert_array_equal(out.x[others], lost[others])  # only the lost limb was searched
+
+
+def test_nothing_is_searched_when_nothing_is_lost(setup):
+    model, truth, fitness = setup
+    out = Recovery().run(fitness, model, truth, np.random.default_rng(0), None, model.sigma)
+    assert out.evaluations == 0 and out.lost == [] and out.recovered == []
+    np.testing.assert_array_equal(out.x, truth)
+
+
+def test_settings_are_checked():
+    assert Recovery.from_settings({}) is None
+    assert Recovery.from_settings({"threshold": 0.1}).threshold == 0.1
+    with pytest.raises(ConfigError, match="unknown recovery"):
+        Recovery.from_settings({"thresold": 0.1})
