@@ -114,6 +114,9 @@ def track(
     fps: float = typer.Option(20.0, help="Tracking rate, frames/s."),
     max_frames: int = typer.Option(None, "--max-frames", min=1, help="Only the first N frames."),
     seed: int = typer.Option(0, min=0, help="Seed of the run."),
+    repeat: int = typer.Option(1, min=1, help="Play the tracked frames this many times, every other pass "
+                                              "backwards: a long recording, to see whether the cost per frame "
+                                              "grows with it."),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object instead of a table."),
 ) -> None:
     """Track one run in this process and show where its time goes, part by part of the frame loop
@@ -125,7 +128,7 @@ def track(
 
     cfg = TrackConfig(algo=algo or DEFAULT_ALGO, fps=fps, seed=seed, max_frames=max_frames)
     seq = resolve_sequence(source or str(DEFAULT_CLIP), progress=not json_out)
-    res = bench_track(seq, cfg)
+    res = bench_track(seq, cfg, repeat=repeat)
     if json_out:
         print_json(res)
         return
@@ -139,5 +142,8 @@ def track(
     for p in res["parts"]:
         table.add_row(p["part"], f"{p['ms_per_frame']:.1f}", f"{100 * p['share']:.0f} %", p["what"])
     console.print(table)
+    console.print(f"ms per frame in the first and the last quarter of the run: "
+                  f"{res['ms_per_frame_first_quarter']:.1f} and {res['ms_per_frame_last_quarter']:.1f}",
+                  highlight=False)
     console.print(f"peak memory {res['peak_rss_mb']:.0f} MB; D_mean {res['d_mean_mm']:.1f} mm"
                   if res["d_mean_mm"] is not None else f"peak memory {res['peak_rss_mb']:.0f} MB", highlight=False)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import resource
 import sys
 import tempfile
@@ -9,10 +10,13 @@ import time
 from pathlib import Path
 from typing import Any
 
-from swarmpose.track.timing import PARTS
-from swarmpose.track.tracker import TrackConfig, prepare_track, run_tracker
+import numpy as np
 
-__all__ = ["bench_track"]
+from swarmpose.errors import ConfigError
+from swarmpose.track.timing import PARTS
+from swarmpose.track.tracker import TrackConfig, TrackSetup, prepare_track, run_tracker
+
+__all__ = ["bench_track", "repeated"]
 
 #: What each part of :data:`~swarmpose.track.timing.PARTS` covers.
 PART_HELP = {
@@ -31,18 +35,42 @@ def _peak_rss_mb() -> float:
     return kb / 1024.0 if sys.platform != "darwin" else kb / 2**20
 
 
-def bench_track(sequence: str | Path, config: TrackConfig, *, run: int = 0) -> dict[str, Any]:
+def repeated(setup: TrackSetup, times: int) -> TrackSetup:
+    """The tracked frames played ``times`` times in a row, every other pass backwards (a long recording from
+    a short clip with no jump between the passes: the motion reverses, the clock runs on at the tracking
+    rate), for measuring how the cost per frame grows with the length of a recording."""
+    if isinstance(times, bool) or int(times) != times or times < 1:
+        raise ConfigError(f"--repeat must be a whole number >= 1, got {times!r}")
+    n = int(times)
+    if n == 1 or len(setup.frame_indices) < 2:
+        return setup
+    fwd = np.arange(len(setup.frame_indices))
+    order = np.concatenate([fwd if k % 2 == 0 else fwd[::-1] for k in range(n)])
+    order = order[np.concatenate([[True], order[1:] != order[:-1]])]  # a turn does not repeat its frame
+    t = setup.frame_times
+    step = float(np.median(np.diff(t)))
+    return dataclasses.replace(
+        setup, frame_indices=setup.frame_indices[order], frame_times=t[0] + step * np.arange(len(order)),
+        gt_joints=setup.gt_joints[order], ik_params=setup.ik_params[order], ik_error_mm=setup.ik_error_mm[order])
+
+
+def bench_track(sequence: str | Path, config: TrackConfig, *, run: int = 0, repeat: int = 1) -> dict[str, Any]:
     """Track one run of ``sequence`` (in this process, into a temporary folder) and time it by part.
 
+    ``repeat``: play the tracked frames that many times, forwards and backwards (:func:`repeated`).
     Returns ``{"frames", "seconds", "frames_per_s", "parts": [{"part", "seconds", "ms_per_frame", "share"}],
     "d_mean_mm", "evals_per_frame", "peak_rss_mb", ...}``; the first frame's kernel compilation is not counted
     (as in ``track``).
     """
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="swarmpose-bench-") as tmp:
-        setup = prepare_track(sequence, config, Path(tmp))
+        setup = repeated(prepare_track(sequence, config, Path(tmp)), repeat)
         t_setup = time.perf_counter() - t0
         result = run_tracker(setup, run, Path(tmp))
+    # the time per frame along the run: a cost that grows with the recording shows as a rising last quarter
+    quarter = max(1, len(result.seconds) // 4)
+    first_q = float(result.seconds[:quarter].mean()) if len(result.seconds) else 0.0
+    last_q = float(result.seconds[-quarter:].mean()) if len(result.seconds) else 0.0
     frames = len(result.seconds)
     total = float(result.seconds.sum())
     parts = []
@@ -56,6 +84,9 @@ def bench_track(sequence: str | Path, config: TrackConfig, *, run: int = 0) -> d
         "algo": config.algo,
         "fps": config.fps,
         "frames": frames,
+        "repeat": int(repeat),
+        "ms_per_frame_first_quarter": 1e3 * first_q,
+        "ms_per_frame_last_quarter": 1e3 * last_q,
         "seconds": total,
         "frames_per_s": frames / total if total > 0 else 0.0,
         "ms_per_frame": 1e3 * total / max(frames, 1),
