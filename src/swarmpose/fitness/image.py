@@ -24,6 +24,7 @@ from swarmpose.fitness.distance import (
     DistanceMaps,
     distance_terms,
     distance_terms_reference,
+    part_distances,
     prepare_distance_maps,
 )
 from swarmpose.render.project import DEFAULT_N_RIM, DEFAULT_NEAR_MM
@@ -206,8 +207,7 @@ class ImageFitness:
     def part_agreement(self, poses: np.ndarray) -> np.ndarray:
         """Per-cone disagreement ``(N, K)`` in ``[0, 1]``: each cone's model-to-silhouette distance term
         averaged over the views (0: the cone lies inside every observed silhouette). Loss detection reads it."""
-        _, _, parts = self.distance_measure(poses)
-        return parts.mean(axis=1)
+        return part_distances(self.distance_measure(poses)[2])
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}(backend={self.backend.name!r}, options={self.default_options})"

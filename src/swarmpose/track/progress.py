@@ -52,10 +52,11 @@ def _dtype(n_params: int, n_limbs: int) -> np.dtype:
 
 
 class RunProgress:
-    """The progress files of one run (``T`` frames, ``D`` parameters, ``L`` limbs)."""
+    """The progress files of run ``run`` (``T`` frames, ``D`` parameters, ``L`` limbs)."""
 
-    def __init__(self, run_dir: Path, n_frames: int, n_params: int, n_limbs: int) -> None:
+    def __init__(self, run_dir: Path, n_frames: int, n_params: int, n_limbs: int, *, run: int = 0) -> None:
         self.run_dir = Path(run_dir)
+        self.run = int(run)
         self.state_file = self.run_dir / STATE_FILE
         self.frames_file = self.run_dir / FRAMES_FILE
         self.dtype = _dtype(n_params, n_limbs)
@@ -76,7 +77,7 @@ class RunProgress:
         try:
             z = load_npz(self.state_file, ("done", "x_prev", "rng_state"))
         except FormatError as exc:
-            raise FormatError(f"{exc}; delete it to track the run afresh") from None
+            raise FormatError(f"{exc}; delete it to track run {self.run} afresh") from None
         try:
             done = int(z["done"])
             if not 0 <= done <= self.shape[0]:
@@ -95,7 +96,7 @@ class RunProgress:
             else:
                 rows = self._open("r+")
         except (ValueError, TypeError, KeyError, json.JSONDecodeError) as exc:
-            raise FormatError(f"does not fit this run ({exc}); delete it to track the run afresh",
+            raise FormatError(f"does not fit this run ({exc}); delete it to track run {self.run} afresh",
                               path=self.state_file) from None
         r = np.array(rows[:done])
         return ProgressState(done=done, params=r["params"], scores=r["score"], evaluations=r["evaluations"],
@@ -117,7 +118,10 @@ class RunProgress:
 
     def start(self, state: ProgressState | None) -> None:
         """Open the frames file for writing: a new one, or the loaded run's (rows of the earlier layout copied)."""
-        self._open("w+") if state is None or not self.frames_file.is_file() else self._open("r+")
+        if state is None or not self.frames_file.is_file():
+            self._open("w+")
+        else:
+            self._open("r+")
         if state is not None and state.done:
             f = self._frames
             f["params"][:state.done], f["score"][:state.done] = state.params, state.scores

@@ -529,7 +529,8 @@ def run_tracker(
     feature_options = parse_feature_options(cfg.feature_options)
     timer = PartTimer()
     constraint = timer.wrap("priors", HardPriors(model).valid)
-    fitness = TimedFitness(_make_fitness(setup), timer)
+    untimed_fitness = _make_fitness(setup)
+    fitness = TimedFitness(untimed_fitness, timer)
     T, D = len(setup.frame_indices), model.n_params
 
     params = np.zeros((T, D))
@@ -542,17 +543,14 @@ def run_tracker(
     carry = None
     start_k = 0
     run_dir = None if out_dir is None else out_dir / f"run_{run:03d}"
-    store = None if run_dir is None else RunProgress(run_dir, T, D, len(LIMB_NAMES))
+    store = None if run_dir is None else RunProgress(run_dir, T, D, len(LIMB_NAMES), run=run)
     state = None
     if store is not None:
         run_dir.mkdir(parents=True, exist_ok=True)
         if store.exists():
             if not resume:
                 raise ConfigError(f"{store.state_file} exists: pass --resume to continue it, or use a new --out")
-            try:
-                state = store.load()
-            except FormatError as exc:
-                raise FormatError(str(exc).replace("track the run afresh", f"track run {run} afresh")) from None
+            state = store.load()
             start_k = state.done
             params[:start_k], scores[:start_k] = state.params, state.scores
             evals[:start_k], seconds[:start_k] = state.evaluations, state.seconds
@@ -577,7 +575,7 @@ def run_tracker(
             fitness.bind(observation if observe is None else observe(k, observation))
             if i == start_k:  # compile the fitness kernels (numba: seconds on a fresh install) off the clock,
                 tw = time.perf_counter()  # so that frames/s is the tracking speed; the score is not used
-                fitness._fitness.evaluate(x_prev[None])
+                untimed_fitness.evaluate(x_prev[None])
                 t0 += time.perf_counter() - tw
             with timer.part("motion"):
                 x_pred = motion.predict(params[:i] if i >= 2 else x_prev[None], constraint, motion_mask)

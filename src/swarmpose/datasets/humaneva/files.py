@@ -15,17 +15,21 @@ from swarmpose.errors import DataError, FormatError
 _NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?\Z")
 
 
-def _read_text(path: str | os.PathLike[str], what: str) -> tuple[Path, str]:
-    p = Path(path)
+def _read_bytes(p: Path, what: str) -> bytes:
+    """The bytes of ``p``; a missing file, a folder or a read error is a DataError naming it and ``what``."""
     if not p.exists():
         raise DataError(f"{p}: missing {what}")
     if not p.is_file():
         raise DataError(f"{p}: not a file ({what} expected)")
     try:
-        data = p.read_bytes()
+        return p.read_bytes()
     except OSError as exc:
         raise DataError(f"{p}: cannot read {what}: {exc}") from exc
-    return p, data.decode("latin-1")  # never fails; non-numeric bytes are reported as bad tokens
+
+
+def _read_text(path: str | os.PathLike[str], what: str) -> tuple[Path, str]:
+    p = Path(path)
+    return p, _read_bytes(p, what).decode("latin-1")  # never fails; non-numeric bytes are reported as bad tokens
 
 
 def _tokens(text: str) -> list[tuple[int, str]]:
@@ -67,12 +71,7 @@ def _loadmat(p: Path, what: str, v73_hint: str = "") -> dict[str, Any]:
 
     import scipy.io
 
-    if not p.is_file():
-        raise DataError(f"{p}: missing {what}")
-    try:
-        raw = p.read_bytes()
-    except OSError as exc:
-        raise DataError(f"{p}: cannot read {what}: {exc}") from exc
+    raw = _read_bytes(p, what)
     try:
         return scipy.io.loadmat(io.BytesIO(raw), squeeze_me=True, struct_as_record=False)
     except NotImplementedError:
