@@ -121,13 +121,14 @@ from swarmpose.cli import (  # noqa: E402
     compare_commands,
     dataset_commands,
     demo,
+    recording_commands,
     report_commands,
     synth_commands,
     track_commands,
 )
 
 __all__ = ["app", "main", "command", "bench", "clip_commands", "compare_commands", "dataset_commands", "demo",
-           "report_commands", "synth_commands", "track_commands"]
+           "recording_commands", "report_commands", "synth_commands", "track_commands"]
 
 
 def _tidy_help(typer_app: typer.Typer) -> None:

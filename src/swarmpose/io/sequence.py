@@ -117,6 +117,9 @@ class MarkerData:
         Noise-free projections of every marker.
     visible : numpy.ndarray of shape (T, C, M) bool, or None
         Visibility before drop-outs (inside the image and not occluded).
+    confidence : numpy.ndarray of shape (Q_total,) float64 in [0, 1], or None
+        The detector's confidence in each detection (body keypoints from a person detector, whose ids
+        are then the keypoints' labels, not an evaluation-only identity).
     """
 
     names: tuple[str, ...]
@@ -125,6 +128,7 @@ class MarkerData:
     ids: np.ndarray
     projections: np.ndarray | None = None
     visible: np.ndarray | None = None
+    confidence: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         self.names = tuple(str(n) for n in self.names)
@@ -147,6 +151,12 @@ class MarkerData:
             self.visible = np.asarray(self.visible, dtype=bool)
             if self.visible.shape != (T, C, M):
                 raise ShapeError(f"marker visibility must have shape {(T, C, M)}, got {self.visible.shape}")
+        if self.confidence is not None:
+            self.confidence = np.asarray(self.confidence, dtype=np.float64).reshape(-1)
+            if self.confidence.shape != (total,):
+                raise ShapeError(f"marker confidence must have shape {(total,)}, got {self.confidence.shape}")
+            if not np.all((self.confidence >= 0) & (self.confidence <= 1)):
+                raise ShapeError("marker confidence must lie in [0, 1]")
         self._offsets = np.concatenate([[0], np.cumsum(self.counts.ravel())])
 
     @classmethod
@@ -161,10 +171,56 @@ class MarkerData:
         idv = np.concatenate(flat_ids) if flat_ids else np.zeros(0, np.int16)
         return cls(tuple(names), counts, uv, idv, projections, visible)
 
+    @classmethod
+    def from_dense(cls, names: Sequence[str], uv: np.ndarray, confidence: np.ndarray | None = None) -> MarkerData:
+        """Build from labelled keypoints ``uv`` of shape (T, C, M, 2), NaN where a keypoint is absent.
+
+        Each present keypoint becomes one detection whose id is its label; ``confidence`` (T, C, M)
+        goes with it. :meth:`to_dense` is the inverse.
+        """
+        uv = np.asarray(uv, dtype=np.float64)
+        if uv.ndim != 4 or uv.shape[2:] != (len(names), 2):
+            raise ShapeError(f"keypoints must have shape (T, C, {len(names)}, 2), got {uv.shape}")
+        present = np.isfinite(uv).all(axis=-1)
+        counts = present.sum(axis=2).astype(np.int64)
+        ids = np.broadcast_to(np.arange(len(names), dtype=np.int16), present.shape)[present]
+        conf = None
+        if confidence is not None:
+            confidence = np.asarray(confidence, dtype=np.float64)
+            if confidence.shape != present.shape:
+                raise ShapeError(f"confidence must have shape {present.shape}, got {confidence.shape}")
+            conf = np.clip(confidence[present], 0.0, 1.0)
+        return cls(tuple(names), counts, uv[present], ids, confidence=conf)
+
+    def to_dense(self) -> tuple[np.ndarray, np.ndarray | None]:
+        """Labelled keypoints ``(T, C, M, 2)`` (NaN where absent) and confidences ``(T, C, M)`` or None.
+
+        Needs detections whose ids are labels (at most one per label and view); false detections
+        (id -1) are dropped.
+        """
+        T, C = self.counts.shape
+        M = len(self.names)
+        uv = np.full((T, C, M, 2), np.nan)
+        conf = None if self.confidence is None else np.zeros((T, C, M))
+        rows = np.repeat(np.arange(T * C), self.counts.ravel())
+        keep = self.ids >= 0
+        flat_uv = uv.reshape(T * C, M, 2)
+        flat_uv[rows[keep], self.ids[keep]] = self.uv[keep]
+        if conf is not None:
+            conf.reshape(T * C, M)[rows[keep], self.ids[keep]] = self.confidence[keep]
+        return uv, conf
+
     @property
     def n_frames(self) -> int:
         """``T``."""
         return int(self.counts.shape[0])
+
+    def frame_confidence(self, k: int) -> list[np.ndarray] | None:
+        """Confidences ``[(Q_c,)]`` of frame ``k``'s detections, one entry per view, or None."""
+        if self.confidence is None:
+            return None
+        C = self.counts.shape[1]
+        return [self.confidence[self._offsets[k * C + c]:self._offsets[k * C + c + 1]].copy() for c in range(C)]
 
     def frame(self, k: int) -> tuple[list[np.ndarray], list[np.ndarray]]:
         """Detections ``[(Q_c, 2)]`` and ids ``[(Q_c,)]`` of frame ``k``, one entry per view."""
@@ -683,6 +739,8 @@ class SequenceWriter:
                 arrays["projections"] = markers.projections
             if markers.visible is not None:
                 arrays["visible"] = markers.visible
+            if markers.confidence is not None:
+                arrays["confidence"] = markers.confidence
             np.savez_compressed(self.path / _MARKERS, **arrays)
             files["markers"] = _MARKERS
             marker_meta = {"names": list(markers.names)}
@@ -933,7 +991,7 @@ def open_sequence(path: str | os.PathLike[str]) -> MultiViewSequence:
         if not isinstance(mm, dict) or not isinstance(mm.get("names"), list):
             raise FormatError("field 'markers.names' must list the marker names", path=meta_path, field="markers")
         names = tuple(str(n) for n in mm["names"])
-        arr = _load_npz(mpath, ["counts", "uv", "ids"], optional=["projections", "visible"])
+        arr = _load_npz(mpath, ["counts", "uv", "ids"], optional=["projections", "visible", "confidence"])
         counts = _check_shape(arr["counts"], (T, C), np.int64, mpath, "counts")
         total = int(counts.sum())
         uv = _check_shape(arr["uv"], (total, 2), np.float64, mpath, "uv")
@@ -948,7 +1006,12 @@ def open_sequence(path: str | os.PathLike[str]) -> MultiViewSequence:
         if np.any(ids >= M) or np.any(ids < -1):
             raise FormatError(f"ids must be in [-1, {M}), got {int(ids.min())}..{int(ids.max())}", path=mpath,
                               field="ids")
-        markers = MarkerData(names, counts, uv, ids, proj, vis)
+        conf = arr.get("confidence")
+        if conf is not None:
+            conf = _check_shape(conf, (total,), np.float64, mpath, "confidence")
+            if not np.all((conf >= 0) & (conf <= 1)):
+                raise FormatError("confidences must lie in [0, 1]", path=mpath, field="confidence")
+        markers = MarkerData(names, counts, uv, ids, proj, vis, conf)
     wfs = meta.get("world_from_source")
     try:
         wfs_arr = None if wfs is None else np.asarray(wfs, dtype=np.float64)
