@@ -253,6 +253,8 @@ class FrameFeatures:
         Edge maps in ``[0, 1]`` (:func:`edge_map`).
     cameras : list of Camera
         ``C`` cameras whose ``(width, height)`` equal ``(W, H)``.
+    keypoints, keypoint_confidence : numpy.ndarray, shapes (C, J, 2) and (C, J), optional
+        A detector's labelled body keypoints (px, NaN where absent) and their confidences.
 
     Raises
     ------
@@ -263,6 +265,8 @@ class FrameFeatures:
     silhouettes: np.ndarray
     edges: np.ndarray
     cameras: list[Camera]
+    keypoints: np.ndarray | None = None
+    keypoint_confidence: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         s = np.asarray(self.silhouettes)
@@ -288,6 +292,15 @@ class FrameFeatures:
         self.silhouettes = np.ascontiguousarray(s)
         self.edges = e
         self.cameras = cams
+        if (self.keypoints is None) != (self.keypoint_confidence is None):
+            raise ShapeError("keypoints and keypoint_confidence go together")
+        if self.keypoints is not None:
+            kp = np.asarray(self.keypoints, dtype=np.float64)
+            kc = np.asarray(self.keypoint_confidence, dtype=np.float64)
+            if kp.ndim != 3 or kp.shape[0] != len(cams) or kp.shape[2] != 2 or kc.shape != kp.shape[:2]:
+                raise ShapeError(f"keypoints must be (C={len(cams)}, J, 2) with confidences (C, J), got {kp.shape} "
+                                 f"and {kc.shape}")
+            self.keypoints, self.keypoint_confidence = kp, kc
 
     @property
     def n_views(self) -> int:
@@ -338,7 +351,8 @@ class FrameFeatures:
             e = cv2.resize(self.edges[v], (w, h), interpolation=cv2.INTER_AREA)
             peak = float(e.max())
             edg[v] = e * np.float32(1.0 / peak) if peak > 0 else e
-        return FrameFeatures(sil, edg, cams)
+        kp = None if self.keypoints is None else (self.keypoints + 0.5) / factor - 0.5
+        return FrameFeatures(sil, edg, cams, kp, self.keypoint_confidence)
 
 
 def parse_feature_options(text: str) -> tuple[dict, dict]:
@@ -381,13 +395,16 @@ def compute_features(
     downsample: int = 1,
     silhouette_options: dict | None = None,
     edge_options: dict | None = None,
+    silhouettes: np.ndarray | None = None,
+    keypoints: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> FrameFeatures:
     """Silhouettes and edge maps of one multi-view frame (thesis sec. 5.2).
 
     Parameters
     ----------
     images, backgrounds : numpy.ndarray, shape (C, H, W) or (C, H, W, 3), uint8
-        The frame and the background of every view.
+        The frame and the background of every view (``backgrounds`` unused, may be None, when
+        ``silhouettes`` are given).
     cameras : sequence of Camera
         ``C`` cameras of size ``(W, H)``.
     downsample : int, default 1
@@ -395,6 +412,12 @@ def compute_features(
         :meth:`FrameFeatures.downsample` is applied.
     silhouette_options, edge_options : dict, optional
         Keyword arguments for :func:`silhouette` and :func:`edge_map`.
+    silhouettes : numpy.ndarray, shape (C, H, W) uint8 in {0, 1}, optional
+        Silhouettes found otherwise (a learned person segmentation stored with the sequence): used
+        instead of background subtraction; the edge maps are masked with them as usual.
+    keypoints : (numpy.ndarray (C, J, 2), numpy.ndarray (C, J)), optional
+        A detector's body keypoints (px, NaN where absent) and confidences, carried with the features for
+        the keypoint term of the image fitnesses (:mod:`swarmpose.fitness.keypoints`).
 
     Returns
     -------
@@ -406,10 +429,13 @@ def compute_features(
         Mismatched shapes, or not one camera per view.
     """
     imgs = np.asarray(images)
-    bgs = np.asarray(backgrounds)
     if imgs.ndim not in (3, 4):
         raise ShapeError(f"images must have shape (C, H, W) or (C, H, W, 3), got {imgs.shape}")
-    if bgs.shape != imgs.shape:
+    given = None if silhouettes is None else np.asarray(silhouettes)
+    if given is not None and given.shape != imgs.shape[:3]:
+        raise ShapeError(f"silhouettes must have shape {imgs.shape[:3]}, got {given.shape}")
+    bgs = None if given is not None else np.asarray(backgrounds)
+    if bgs is not None and bgs.shape != imgs.shape:
         raise ShapeError(f"backgrounds must have the images' shape {imgs.shape}, got {bgs.shape}")
     if len(cameras) != imgs.shape[0]:
         raise ShapeError(f"expected {imgs.shape[0]} cameras (one per view), got {len(cameras)}")
@@ -419,6 +445,7 @@ def compute_features(
     sil = np.empty((C, H, W), np.uint8)
     edg = np.empty((C, H, W), np.float32)
     for v in range(C):  # one view at a time: OpenCV calls, a handful per view
-        sil[v] = silhouette(imgs[v], bgs[v], **so)
+        sil[v] = (given[v] > 0) if given is not None else silhouette(imgs[v], bgs[v], **so)
         edge_map(imgs[v], sil[v], out=edg[v], **eo)
-    return FrameFeatures(sil, edg, list(cameras)).downsample(downsample)
+    kp, kc = (None, None) if keypoints is None else keypoints
+    return FrameFeatures(sil, edg, list(cameras), kp, kc).downsample(downsample)

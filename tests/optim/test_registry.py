@@ -29,7 +29,7 @@ PAPER_BUDGETS = {
     "aapso-fixed": 5 * 80 * 10 + 30 * 10,
 }
 #: Configurations beyond the papers and their budgets (base search + refinement; recovery only when a limb is lost).
-OWN_BUDGETS = {"refined": 200 * 6 + 200}
+OWN_BUDGETS = {"refined": 200 * 6 + 200, "refined-keypoints": 200 * 6 + 200}
 BUDGETS = {**PAPER_BUDGETS, **OWN_BUDGETS}
 
 
@@ -51,6 +51,15 @@ def test_names_and_describe():
         assert r["evals_per_frame"] == BUDGETS[r["name"]]
         assert r["reference"] and len(r["summary"]) > 20  # every entry says what it is
         assert r["fitness"] == ("reprojection" if r["name"].startswith("aapso") else "silhouette_edge")
+
+
+def test_refined_keypoints_is_refined_with_the_keypoint_term(balan31):
+    from swarmpose.optim.registry import KEYPOINT_WEIGHT
+
+    plain, kp = get("refined", model=balan31, fps=20), get("refined-keypoints", model=balan31, fps=20)
+    assert kp.base.fitness_options == {**plain.base.fitness_options, "keypoints": KEYPOINT_WEIGHT}
+    assert kp.refine_options == {**plain.refine_options, "keypoints": KEYPOINT_WEIGHT}
+    assert (kp.refine_budget, kp.base.n_particles, kp.base.n_layers) == (200, 200, 6)
 
 
 def test_cli_json_and_table(capsys):

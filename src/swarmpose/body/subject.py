@@ -136,13 +136,16 @@ def _frames(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
 
 
 def subject_from_joints(spec: BodySpec, joints15: np.ndarray, name: str = "subject",
-                        measurements: SubjectMeasurements | None = None) -> Subject:
+                        measurements: SubjectMeasurements | None = None, *, robust: bool = False,
+                        source: str = "15-joint ground truth") -> Subject:
     """Measure a ``balan31``-layout subject from 15-joint ground truth alone (no skeleton file).
 
     For sources without a skeleton (HumanEva mocap): limb lengths are the mean joint distances; the
     branching offsets are averaged in per-frame body frames (pelvis: y from the right to the left
     hip, z towards the thorax; thorax: y from the right to the left shoulder, z up the spine).
     Frames with non-finite joints are ignored; ``measurements`` (optional) size the cones.
+    ``robust``: medians over frames instead of means, for joints triangulated from a detector's
+    keypoints, whose misdetections are outliers; ``source`` names the joints in the subject's record.
     """
     from swarmpose.joints import JOINT_INDEX as J
 
@@ -154,11 +157,13 @@ def subject_from_joints(spec: BodySpec, joints15: np.ndarray, name: str = "subje
     Rp = _frames(g[:, J["l_hip"]], g[:, J["r_hip"]], tho - pel)
     Rt = _frames(g[:, J["l_shoulder"]], g[:, J["r_shoulder"]], tho - pel)
 
+    stat = np.median if robust else np.mean
+
     def local(R: np.ndarray, v: np.ndarray) -> tuple[float, float, float]:
-        return tuple(float(c) for c in np.einsum("tji,tj->ti", R, v).mean(axis=0))  # type: ignore[return-value]
+        return tuple(float(c) for c in stat(np.einsum("tji,tj->ti", R, v), axis=0))  # type: ignore[return-value]
 
     def length(a: str, b: str) -> float:
-        return float(np.linalg.norm(g[:, J[b]] - g[:, J[a]], axis=-1).mean())
+        return float(stat(np.linalg.norm(g[:, J[b]] - g[:, J[a]], axis=-1)))
 
     offsets: dict[str, tuple[float, float, float]] = {
         "spine_to_thorax": local(Rp, tho - pel),
@@ -176,4 +181,4 @@ def subject_from_joints(spec: BodySpec, joints15: np.ndarray, name: str = "subje
     cones, note = _cones(spec, ratio, measurements)
     offsets["pelvis_to_torso_top"] = _torso_top(offsets, cones)
     offsets = {k: v for k, v in offsets.items() if k in spec.default_subject.offsets}
-    return Subject(name=name, offsets=offsets, cones=cones, source=f"15-joint ground truth ({len(g)} frames); {note}")
+    return Subject(name=name, offsets=offsets, cones=cones, source=f"{source} ({len(g)} frames); {note}")

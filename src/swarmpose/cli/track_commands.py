@@ -55,6 +55,8 @@ def default_results_name(name: str, cfg: TrackConfig) -> str:
         parts.append("subject-" + folder_slug(Path(cfg.subject).stem))
     if cfg.height_mm is not None:
         parts.append(f"h{cfg.height_mm:g}mm")
+    if cfg.views:
+        parts.append("views-" + folder_slug(cfg.views.replace(",", "+")))
     return "-".join(parts)
 
 
@@ -151,6 +153,9 @@ def track(
                                             "of the one measured from the sequence's motion capture."),
     height: float = typer.Option(None, "--height", help="Build the subject from this stature, mm (published "
                                                           "proportions, as `swarmpose subject`)."),
+    views: str = typer.Option("", help="Track with these cameras only, e.g. cam01,cam02,cam03: the others are "
+                                       "held out, and the report scores the model in them (no ground truth "
+                                       "needed)."),
     max_frames: int = typer.Option(None, min=1, help="Track only the first N frames at --fps (a quick try; the "
                                                      "default --out then has -<N>frames after the rate)."),
     workers: int = typer.Option(None, min=1, help="Parallel worker processes (default: one per core, at most --runs); "
@@ -162,7 +167,10 @@ def track(
                                                                    "implies it)."),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object with the summary."),
 ) -> None:
-    """Track 3D motion frame by frame and measure it against the ground truth.
+    """Track 3D motion frame by frame and, where the sequence has ground truth, measure it.
+
+    A sequence without ground truth (an imported recording) starts from its triangulated keypoints and
+    measures the subject from them (or from --height); --views holds cameras out to score the track in.
 
     Writes a results folder: config.json (settings, seeds, versions), subject.json (the body's
     measurements), ik.npz (the IK floor), summary.json (means over the runs and the worst run), and per
@@ -177,7 +185,7 @@ def track(
     cfg = TrackConfig(algo=algo, fps=fps, model=model, fitness=fitness, backend=backend,
                       downsample=downsample, seed=seed, fitness_options=fitness_options,
                       feature_options=features, optim_variant=variant, motion=motion,
-                      max_frames=max_frames, subject=str(subject or ""), height_mm=height)
+                      max_frames=max_frames, subject=str(subject or ""), height_mm=height, views=views)
     if backend == "torch" and not scheduler:
         import torch
 
@@ -223,6 +231,12 @@ def track(
         over.append(f"means over the {runs} runs")
     if summary["frames_scored"] < summary["frames"]:
         over.append(f"over the {summary['frames_scored']} of {summary['frames']} frames with valid ground truth")
+    if not summary.get("ground_truth", True):
+        console.print(f"  no ground truth: no 3D error; {summary['frames_per_s']:.2f} frames/s"
+                      + (f"; tracked with {summary['views']}" if summary.get("views") else ""), highlight=False)
+        console.print(f"  results in {out}/  (the report scores held-out cameras: swarmpose report {out})",
+                      markup=False, highlight=False)
+        return
     d_max = f"D_max {summary['d_max_mm']:.1f} mm"
     if runs > 1:
         d_max += f" (largest {summary['d_max_over_runs_mm']:.1f})"

@@ -15,7 +15,7 @@ __all__ = ["Fitness", "ImageOptions", "parse_image_options", "TERMS", "silhouett
 
 #: Values of the ``"terms"`` option.
 TERMS = ("silhouette+edge", "silhouette", "edge", "distance")
-_OPTION_KEYS = ("edge_cones", "edge_top", "terms", "distance")
+_OPTION_KEYS = ("edge_cones", "edge_top", "terms", "distance", "keypoints")
 
 
 @runtime_checkable
@@ -59,12 +59,16 @@ class ImageOptions:
         the silhouette distance term alone (:mod:`swarmpose.fitness.distance`).
     distance : float
         Weight of the silhouette distance term added to the fitness (0: off, the papers' fitness).
+    keypoints : float
+        Weight of the keypoint term (:mod:`swarmpose.fitness.keypoints`) added where the bound frame carries
+        a detector's keypoints (0: off, the papers' fitness).
     """
 
     edge_cones: str | tuple[str, ...] = "all"
     edge_top: bool = True
     terms: str = "silhouette+edge"
     distance: float = 0.0
+    keypoints: float = 0.0
 
     def __post_init__(self) -> None:
         if self.terms not in TERMS:
@@ -73,13 +77,15 @@ class ImageOptions:
             raise ConfigError(f"edge_top must be a bool, got {self.edge_top!r}")
         if not isinstance(self.edge_cones, str):
             object.__setattr__(self, "edge_cones", tuple(self.edge_cones))
-        try:
-            w = float(self.distance)
-        except (TypeError, ValueError):
-            w = float("nan")
-        if isinstance(self.distance, bool) or not (np.isfinite(w) and w >= 0):
-            raise ConfigError(f"distance must be a weight >= 0, got {self.distance!r}")
-        object.__setattr__(self, "distance", w)
+        for name in ("distance", "keypoints"):
+            value = getattr(self, name)
+            try:
+                w = float(value)
+            except (TypeError, ValueError):
+                w = float("nan")
+            if isinstance(value, bool) or not (np.isfinite(w) and w >= 0):
+                raise ConfigError(f"{name} must be a weight >= 0, got {value!r}")
+            object.__setattr__(self, name, w)
 
 
 def parse_image_options(options: Mapping[str, Any] | None, default: ImageOptions) -> ImageOptions:
@@ -98,7 +104,8 @@ def parse_image_options(options: Mapping[str, Any] | None, default: ImageOptions
     return ImageOptions(edge_cones=options.get("edge_cones", default.edge_cones),
                         edge_top=options.get("edge_top", default.edge_top),
                         terms=options.get("terms", default.terms),
-                        distance=options.get("distance", default.distance))
+                        distance=options.get("distance", default.distance),
+                        keypoints=options.get("keypoints", default.keypoints))
 
 
 def silhouette_score(Y: np.ndarray, P: np.ndarray, O: np.ndarray, a: float = 0.5) -> np.ndarray:

@@ -27,7 +27,7 @@ def algorithms_command(json: bool = False) -> None:
     from rich.table import Table
 
     table = Table(title="swarmpose optimisers (swarmpose track --algo NAME)", show_lines=True)
-    table.add_column("name", style="bold")
+    table.add_column("name", style="bold", no_wrap=True)
     table.add_column("what it is")
     table.add_column("fitness", justify="left")
     table.add_column("evals/frame", justify="right")

@@ -160,8 +160,14 @@ def make_report(
             images_missing = exc
     out = Path(out_dir) if out_dir is not None else res.path / "report"
     out.mkdir(parents=True, exist_ok=True)
-    figures = [error_over_time(res, out=out / "error_over_time.png"),
-               per_joint_errors(res, out=out / "per_joint_errors.png")]
+    truth = res.summary.get("ground_truth", True) is not False
+    if truth:
+        figures = [error_over_time(res, out=out / "error_over_time.png"),
+                   per_joint_errors(res, out=out / "per_joint_errors.png")]
+    else:
+        from swarmpose.report.without_truth import fitness_over_time
+
+        figures = [fitness_over_time(res, out / "fitness_over_time.png")]
     notes: list[str] = []
     over: list[Path] = []
     vid: Path | None = None
@@ -183,6 +189,15 @@ def make_report(
             if size > limit:
                 notes.append(f"{vid.name} is {size / 1e6:.1f} MB, more than the {limit / 1e6:.1f} MB that "
                              "summary.html embeds: the page links it, so send the video with the page")
-    summary = write_summary(res, out=out / "summary.md", figures=figures, overlays=over, video=vid, notes=notes)
+    if truth:
+        summary = write_summary(res, out=out / "summary.md", figures=figures, overlays=over, video=vid, notes=notes)
+    else:
+        from swarmpose.report.without_truth import heldout_section, write_summary_without_truth
+
+        heldout: list[str] = []
+        if images_missing is None:
+            _, heldout = heldout_section(res, out, run=run)
+        summary = write_summary_without_truth(res, out / "summary.md", figures=figures, overlays=over,
+                                              heldout=heldout, notes=notes)
     page = write_html(summary)
     return ReportPaths(summary=summary, html=page, figures=figures, overlays=over, video=vid, notes=notes)

@@ -87,7 +87,9 @@ class RunData:
 
     @property
     def per_joint_mm(self) -> np.ndarray:
-        """Mean error of each joint over the scored frames, ``(15,)`` mm."""
+        """Mean error of each joint over the scored frames, ``(15,)`` mm (NaN without ground truth)."""
+        if not self.valid.any():
+            return np.full(15, np.nan)
         return self.joint_distances[self.valid].mean(axis=0)
 
     @property
@@ -402,7 +404,8 @@ def load_results(results_dir: str | os.PathLike[str]) -> Results:
         if ik_err.shape != (T, 15):
             raise FormatError(f"joint_error_mm has shape {ik_err.shape}, expected ({T}, 15) like the runs",
                               path=ik_file)
-    ik_floor = None if ik_err is None else float(np.nanmean(ik_err.mean(axis=1)))  # as track: valid frames only
+    # as track: valid frames only; none without ground truth
+    ik_floor = None if ik_err is None or not np.isfinite(ik_err).any() else float(np.nanmean(ik_err.mean(axis=1)))
     summary_file = root / "summary.json"
     stored = read_json_object(summary_file) if summary_file.is_file() else None
     loaded = sorted(r.run for r in runs)

@@ -453,7 +453,12 @@ def _track_jobs(sequence: str | Path, config: TrackConfig, runs: int, out_dir: P
     jobs = [Job(str(sequence), asdict(config), k, str(out_dir), resume, len(setup.frame_indices))
             for k in range(runs)]
     per_run = run_jobs(jobs, workers=workers, scheduler=scheduler, progress=progress)
-    agg = aggregate_runs([errors_from_summary(r) for r in per_run])
+    if setup.has_ground_truth:
+        agg = aggregate_runs([errors_from_summary(r) for r in per_run])
+    else:  # no ground truth: every error measure is absent (null in the JSON), never a number
+        agg = {k: None for k in ("d_mean", "d_max", "d_max_over_runs", "mmta", "mmtp", "mu", "sigma",
+                                 "d_mean_std_over_runs", "per_joint")}
+        agg["worst"] = {"run": None, "d_mean": None, "d_max": None, "mmta": None}
     summary = {
         "algo": config.algo,
         "fps": config.fps,
@@ -470,6 +475,8 @@ def _track_jobs(sequence: str | Path, config: TrackConfig, runs: int, out_dir: P
         "frames_per_s": float(np.mean([r["frames_per_s"] for r in per_run])),
         "frames": int(len(setup.frame_indices)),
         "frames_scored": int(setup.valid.sum()),  # with valid ground truth: the errors are over these
+        "ground_truth": setup.has_ground_truth,
+        "views": config.views or None,
         "frame_interval_s": _intervals(setup.frame_times),
         "worst": {"run": agg["worst"]["run"], "d_mean_mm": agg["worst"]["d_mean"],
                   "d_max_mm": agg["worst"]["d_max"], "mmta": agg["worst"]["mmta"]},

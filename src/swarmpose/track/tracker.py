@@ -43,6 +43,7 @@ from swarmpose.body.priors import HardPriors
 from swarmpose.body.spec import Subject, load_spec
 from swarmpose.errors import ConfigError, DataError, FormatError
 from swarmpose.io.files import load_npz, read_json_object
+from swarmpose.joints import JOINTS15
 from swarmpose.metrics import track_errors, valid_frames
 from swarmpose.track.motion import parse_motion
 from swarmpose.track.progress import RunProgress
@@ -88,6 +89,7 @@ class TrackConfig:
     max_frames: int | None = None  # only the first N frames at this rate (a quick try); None: all
     subject: str = ""  # a subject file (swarmpose subject) instead of the sequence's own
     height_mm: float | None = None  # or a subject from this stature (body.anthropometry)
+    views: str = ""  # "cam01,cam02": track with these cameras only (the others held out for scoring); "" all
 
     def __post_init__(self) -> None:
         if not self.fps > 0:
@@ -224,30 +226,57 @@ class TrackSetup:
         return valid_frames(self.gt_joints)
 
     @property
-    def ik_floor_mm(self) -> float:
+    def has_ground_truth(self) -> bool:
+        """Whether any tracked frame has ground truth to score against."""
+        return bool(self.valid.any())
+
+    @property
+    def ik_floor_mm(self) -> float | None:
+        """The IK floor (mm) over the valid frames; None without ground truth."""
+        if not self.has_ground_truth:
+            return None
         return float(np.nanmean(self.ik_error_mm[self.valid].mean(axis=1)))
 
 
-def _subject_for(seq: Any, spec, config: TrackConfig | None = None) -> Subject:
-    """The subject: the file or stature ``config`` names, else from the source BVH skeleton when there is
-    one, else from the 15-joint ground truth.
+def _subject_for(seq: Any, spec, config: TrackConfig | None = None, keypoints: np.ndarray | None = None) -> Subject:
+    """The subject: the file ``config`` names; else, for a sequence without ground truth, limbs measured from
+    the joints triangulated from its ``keypoints`` (medians over frames), with cones from the stature
+    ``config`` names when it names one; else the stature alone; else from the source BVH skeleton when there
+    is one, else from the 15-joint ground truth.
 
     Cones come from the sequence's subject measurements when it has them (HumanEva's rules).
     """
+    from swarmpose.body.subject import subject_from_joints
+
     if config is not None and config.subject:
         return Subject.load(config.subject)
+    if keypoints is not None and seq.gt_joints is None:
+        subj = subject_from_joints(spec, keypoints, name=str(getattr(seq, "path", "subject")),
+                                   measurements=getattr(seq, "subject_measurements", None), robust=True,
+                                   source="joints triangulated from the detector's keypoints, medians")
+        if config is not None and config.height_mm is not None:
+            from dataclasses import replace
+
+            from swarmpose.body.anthropometry import subject_from_height
+
+            tall = subject_from_height(spec, config.height_mm, measurements=getattr(seq, "subject_measurements", None))
+            subj = replace(subj, cones=tall.cones, source=f"{subj.source}; cones from a stature of "
+                                                          f"{config.height_mm:g} mm")
+        return subj
     if config is not None and config.height_mm is not None:
         from swarmpose.body.anthropometry import subject_from_height
 
         return subject_from_height(spec, config.height_mm,
                                    measurements=getattr(seq, "subject_measurements", None))
-    from swarmpose.body.subject import subject_from_joints
     from swarmpose.io.mocap import load_clip, subject_from_clip
 
     measurements = getattr(seq, "subject_measurements", None)
     clip_path = getattr(seq, "source_clip", None)
     if clip_path is not None and Path(clip_path).is_file():
         return subject_from_clip(spec, load_clip(clip_path), measurements)
+    if seq.gt_joints is None:
+        raise DataError(f"{getattr(seq, 'path', 'the sequence')}: no ground truth and no keypoints to measure the "
+                        "subject from: pass --height MM (or --subject FILE)")
     return subject_from_joints(spec, np.asarray(seq.gt_joints), name=str(getattr(seq, "path", "subject")),
                                measurements=measurements)
 
@@ -352,7 +381,8 @@ def _ik_cache_key(sequence_path: str | Path, config: TrackConfig) -> str:
                        "model_spec_sha1": model_identity(config.model), "variant": config.variant,
                        "fps": config.fps, "ik": "smooth start, polished floor",
                        **({"subject": _file_identity(Path(config.subject))} if config.subject else {}),
-                       **({"height_mm": config.height_mm} if config.height_mm is not None else {})},
+                       **({"height_mm": config.height_mm} if config.height_mm is not None else {}),
+                       **({"views": config.views} if config.views else {})},
                       sort_keys=True)
 
 
@@ -387,10 +417,8 @@ def prepare_track(sequence_path: str | Path, config: TrackConfig, out_dir: Path 
 
     seq = open_sequence(sequence_path)
     try:
-        if seq.gt_joints is None:
-            raise DataError(f"{sequence_path}: the sequence has no ground-truth joints; tracking needs "
-                            "them for the start pose and the errors")
         spec = load_spec(config.model)
+        view_idx = tracked_views(seq, config.views)
         frames = np.asarray(seq.subsample(config.fps), dtype=np.int64)[:config.max_frames]
         if config.fitness_kind in MARKER_FITNESS and seq.markers(int(frames[0])) is None:
             from swarmpose.datasets import is_dataset_spec
@@ -398,12 +426,22 @@ def prepare_track(sequence_path: str | Path, config: TrackConfig, out_dir: Path 
             hint = "" if is_dataset_spec(sequence_path) else " (synthesise it with `swarmpose synth --markers joints15`)"
             raise DataError(f"{sequence_path}: the sequence has no 2D marker detections, which the "
                             f"{config.fitness_kind} fitness needs{hint}")
-        gt = np.asarray(seq.gt_joints)[frames]
+        from swarmpose.track.start import has_keypoints, keypoint_joints
+
+        has_gt = seq.gt_joints is not None
+        gt = np.asarray(seq.gt_joints)[frames] if has_gt else np.full((len(frames), 15, 3), np.nan)
+        kp_joints = None
+        if not has_gt:
+            if not has_keypoints(seq):
+                raise DataError(f"{sequence_path}: the sequence has no ground truth and no body keypoints to start "
+                                "from; import the recording with the detector (`swarmpose import`, without "
+                                "--no-detect)")
+            kp_joints = keypoint_joints(seq, frames, views=view_idx)
         times = np.asarray(seq.frame_times)[frames]
         key = _ik_cache_key(sequence_path, config)
         cached = _read_ik_cache(out_dir, key, frames, len(spec.parameters))
         subject = (Subject.load(out_dir / "subject.json") if cached is not None
-                   else _subject_for(seq, spec, config))
+                   else _subject_for(seq, spec, config, kp_joints))
         model = BodyModel(spec, subject, config.variant)
         parse_motion(config.motion).mask(model)  # unknown parameter groups fail here, before any run
         algo = config.optimizer(model)  # unknown algorithm or variant: before the IK fit is written
@@ -416,6 +454,13 @@ def prepare_track(sequence_path: str | Path, config: TrackConfig, out_dir: Path 
             edge_cone_mask(model.cone_arrays.names, cones)  # an unknown cone set fails here, not in a worker
         if cached is not None:
             ik_params, ik_err = cached
+        elif not has_gt:
+            ik_params, ik_err, floor_params = _keypoint_start(model, kp_joints, sequence_path, int(frames[0]))
+            if out_dir is not None:
+                out_dir.mkdir(parents=True, exist_ok=True)
+                subject.save(out_dir / "subject.json")
+                _atomic_savez(out_dir / "ik.npz", params=ik_params, joint_error_mm=ik_err, floor_params=floor_params,
+                              frame_indices=frames, key=np.array(key))
         else:
             valid = valid_frames(gt)
             if not valid[0]:
@@ -437,6 +482,42 @@ def prepare_track(sequence_path: str | Path, config: TrackConfig, out_dir: Path 
                           evals_per_frame=int(algo.evals_per_frame))
     finally:
         seq.close()
+
+
+def tracked_views(seq: Any, views: str) -> list[int]:
+    """Indices of the cameras ``views`` names (``"cam01,cam03"``; ``""``: all), in the sequence's order."""
+    names = list(seq.view_names)
+    if not views:
+        return list(range(len(names)))
+    wanted = [v.strip() for v in str(views).split(",") if v.strip()]
+    unknown = [v for v in wanted if v not in names]
+    if unknown:
+        raise ConfigError(f"--views: no camera {', '.join(map(repr, unknown))} in the sequence (its cameras: "
+                          f"{', '.join(names)})")
+    if len(set(wanted)) < 1:
+        raise ConfigError("--views names no camera")
+    return [i for i, n in enumerate(names) if n in wanted]
+
+
+def _keypoint_start(model: BodyModel, joints: np.ndarray, sequence_path: Any, first: int):
+    """Start pose from the joints triangulated from the keypoints: the IK fit of frame 0's joints (a joint
+    missing there is taken from the nearest frame that has it); no IK floor without ground truth."""
+    from swarmpose.track.start import fill_gaps
+
+    start = fill_gaps(joints, 0)
+    if not np.isfinite(start).all():
+        missing = [JOINTS15[j] for j in np.flatnonzero(~np.isfinite(start).all(axis=1))]
+        raise DataError(f"{sequence_path}: too few views see {', '.join(missing)} around frame {first} to "
+                        "triangulate the start pose; start later (--start) or import with more cameras")
+    ik = fit_ik(model, start[None])
+    T = len(joints)
+    params = np.full((T, model.n_params), np.nan)
+    params[0] = ik.params[0]
+    return params, np.full((T, 15), np.nan), params.copy()
+
+
+#: The error measures of a run's summary (:class:`swarmpose.metrics.TrackErrors`), null without ground truth.
+ERROR_KEYS = ("d_mean", "d_max", "d_std", "mmta", "mmtp", "mu", "sigma")
 
 
 @dataclass
@@ -475,8 +556,13 @@ def _make_fitness(setup: TrackSetup):
 
 
 def _frame_observation(seq: Any, k: int, kind: str, downsample: int, backgrounds: Any,
-                       feature_options: tuple[dict, dict] = ({}, {})):
-    """One frame's observation; ``feature_options`` = :func:`swarmpose.features.parse_feature_options`'s pair."""
+                       feature_options: tuple[dict, dict] = ({}, {}), views: list[int] | None = None,
+                       keypoints: tuple[np.ndarray, np.ndarray] | None = None):
+    """One frame's observation; ``feature_options`` = :func:`swarmpose.features.parse_feature_options`'s pair;
+    ``views``: the cameras tracked with (default all); ``keypoints``: the whole sequence's labelled keypoints
+    ``(T, C, 15, 2)`` and confidences ``(T, C, 15)`` when it has them (carried for the keypoint term)."""
+    v = list(range(seq.n_views)) if views is None else list(views)
+    cams = [seq.cameras[c] for c in v]
     if kind in MARKER_FITNESS:
         from swarmpose.fitness import MarkerFrame
 
@@ -484,15 +570,24 @@ def _frame_observation(seq: Any, k: int, kind: str, downsample: int, backgrounds
         if markers is None:
             raise DataError(f"{getattr(seq, 'path', seq)}: frame {k} has no 2D marker detections (needed by the "
                             f"{kind} fitness)")
-        return MarkerFrame(markers, list(seq.cameras))
+        return MarkerFrame([markers[c] for c in v], cams)
     from swarmpose.features import compute_features
 
     images = seq.images(k)
     if images is None:
         raise DataError(f"{getattr(seq, 'path', seq)}: frame {k} has no images (needed by the {kind} fitness)")
     sil_opts, edge_opts = feature_options
-    return compute_features(images, backgrounds, list(seq.cameras), downsample=downsample,
-                            silhouette_options=sil_opts, edge_options=edge_opts)
+    stored = seq.silhouettes(k)  # a learned segmentation imported with a recording, used as it is
+    if stored is None and backgrounds is None:
+        raise DataError(f"{getattr(seq, 'path', seq)}: has neither silhouettes nor background images (needed by the "
+                        f"{kind} fitness); import the recording with --silhouettes learned or median")
+    if len(v) != seq.n_views:
+        images = images[v]
+        stored = None if stored is None else stored[v]
+        backgrounds = None if backgrounds is None else np.asarray(backgrounds)[v]
+    kp = None if keypoints is None else (keypoints[0][k][v], keypoints[1][k][v])
+    return compute_features(images, backgrounds, cams, downsample=downsample, silhouette_options=sil_opts,
+                            edge_options=edge_opts, silhouettes=stored, keypoints=kp)
 
 
 def run_tracker(
@@ -562,7 +657,11 @@ def run_tracker(
         store.start(state)
 
     seq = open_sequence(setup.sequence_path)
+    views = tracked_views(seq, cfg.views)
     backgrounds = seq.backgrounds() if cfg.fitness_kind in IMAGE_FITNESS else None
+    from swarmpose.track.start import has_keypoints
+
+    keypoints = seq.marker_data.to_dense() if cfg.fitness_kind in IMAGE_FITNESS and has_keypoints(seq) else None
     try:
         for i in range(start_k, T):
             if stop_after is not None and i >= stop_after:
@@ -571,7 +670,7 @@ def run_tracker(
             k = int(setup.frame_indices[i])
             with timer.part("features"):
                 observation = _frame_observation(seq, k, cfg.fitness_kind, cfg.downsample, backgrounds,
-                                                 feature_options)
+                                                 feature_options, views, keypoints)
             fitness.bind(observation if observe is None else observe(k, observation))
             if i == start_k:  # compile the fitness kernels (numba: seconds on a fresh install) off the clock,
                 tw = time.perf_counter()  # so that frames/s is the tracking speed; the score is not used
@@ -626,9 +725,12 @@ def run_tracker(
                        evaluations=evals[:done], seconds=seconds[:done], recovered=recovered[:done],
                        part_seconds={k: round(v, 6) for k, v in timer.seconds.items()})
     if done == T:
-        errs = track_errors(joints, setup.gt_joints)  # frames without valid ground truth are not scored
-        d_all = errs.d_per_frame
-        result.errors = {**errs.summary(), "frames_per_s": result.frames_per_s,
+        if setup.has_ground_truth:
+            errs = track_errors(joints, setup.gt_joints)  # frames without valid ground truth are not scored
+            d_all, error_fields = errs.d_per_frame, errs.summary()
+        else:  # nothing to score: the measures are absent (null), not zero
+            d_all, error_fields = np.full(T, np.nan), {k: None for k in (*ERROR_KEYS, "per_joint")}
+        result.errors = {**error_fields, "ground_truth": setup.has_ground_truth, "frames_per_s": result.frames_per_s,
                          "evals_per_frame": int(evals.max()), "ik_floor_mm": setup.ik_floor_mm,
                          "recoveries": result.recoveries, "part_seconds": result.part_seconds,
                          "frames_timed": int(done - start_k)}

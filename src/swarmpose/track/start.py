@@ -1,0 +1,74 @@
+"""Where a track without ground truth starts: the 15 joints triangulated from the sequence's keypoints.
+
+A recording imported with a person detector (``swarmpose import``) stores each view's 15 body keypoints,
+labelled, with confidences and left and right already resolved across views, as its marker stream.
+:func:`keypoint_joints` triangulates them per tracked frame (weighted DLT, then again without the
+observations that reproject more than the threshold away: a wrong wrist in one view). The tracker's start
+pose is then the IK fit of the body model to frame 0's joints, and the subject's limbs can be measured from
+the joints over all frames (:func:`swarmpose.body.subject.subject_from_joints` with medians).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from swarmpose.joints import JOINTS15
+from swarmpose.triangulation import residuals, triangulate
+
+__all__ = ["keypoint_joints", "has_keypoints", "fill_gaps", "MIN_CONFIDENCE"]
+
+#: Keypoints below this confidence are not used (MediaPipe's visibility of a hidden joint).
+MIN_CONFIDENCE = 0.3
+
+
+def has_keypoints(seq: Any) -> bool:
+    """Whether ``seq`` stores labelled 15-joint keypoints with confidences (an imported recording)."""
+    md = getattr(seq, "marker_data", None)
+    return md is not None and md.confidence is not None and tuple(md.names) == JOINTS15
+
+
+def keypoint_joints(seq: Any, frames: np.ndarray, *, views: list[int] | None = None,
+                    threshold: float | None = None) -> np.ndarray:
+    """World joints ``(T, 15, 3)`` mm triangulated from the keypoints of ``frames`` (NaN where < 2 views).
+
+    Parameters
+    ----------
+    seq : MultiViewSequence
+        With keypoints (:func:`has_keypoints`).
+    frames : array of int
+        Sequence frames.
+    views : list of int, optional
+        The views to use (default all): a held-out camera stays out.
+    threshold : float, optional
+        Largest residual (px of the sequence) of an observation kept in the second pass; default 2.5 % of
+        the image diagonal.
+    """
+    dense, conf = seq.marker_data.to_dense()
+    idx = np.asarray(frames, dtype=np.int64)
+    v = list(range(seq.n_views)) if views is None else list(views)
+    cams = [seq.cameras[c] for c in v]
+    kp = dense[idx][:, v]
+    w = np.where(conf[idx][:, v] >= MIN_CONFIDENCE, conf[idx][:, v], 0.0)
+    pts = triangulate(cams, kp, w)
+    thr = 0.025 * float(np.hypot(*seq.image_size)) if threshold is None else float(threshold)
+    r = residuals(cams, pts, kp)
+    w2 = np.where(np.isfinite(r) & (r < thr), w, 0.0)
+    again = triangulate(cams, kp, w2)
+    return np.where(np.isfinite(again), again, pts)
+
+
+def fill_gaps(joints: np.ndarray, k: int = 0, reach: int = 10) -> np.ndarray:
+    """Frame ``k``'s joints ``(15, 3)`` with each missing joint taken from the nearest frame (within ``reach``)
+    that has it; NaN where none does."""
+    out = np.array(joints[k], dtype=np.float64)
+    for j in np.flatnonzero(~np.isfinite(out).all(axis=1)):
+        for d in range(1, reach + 1):
+            for kk in (k - d, k + d):
+                if 0 <= kk < len(joints) and np.isfinite(joints[kk, j]).all():
+                    out[j] = joints[kk, j]
+                    break
+            if np.isfinite(out[j]).all():
+                break
+    return out

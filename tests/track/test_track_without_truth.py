@@ -1,0 +1,98 @@
+"""Tracking a sequence without ground truth: the start from keypoints, the subject from them, held-out scores."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from swarmpose.fitness.keypoints import SWAP, keypoint_cost, keypoint_cost_reference
+from swarmpose.io.sequence import MarkerData, MultiViewSequence, open_sequence, write_sequence
+from swarmpose.joints import JOINTS15
+from swarmpose.triangulation import reproject
+
+
+def without_truth(src: Path, out: Path, *, noise_px: float = 0.0, seed: int = 0) -> Path:
+    """The sequence with its ground truth, source clip and subject removed, and keypoints (the truth projected,
+    with noise) as an imported recording would carry them."""
+    rng = np.random.default_rng(seed)
+    with open_sequence(src) as seq:
+        uv = reproject(seq.cameras, np.asarray(seq.gt_joints))  # (T, C, 15, 2)
+        uv = uv + rng.normal(0, noise_px, uv.shape) if noise_px else uv
+        conf = np.full(uv.shape[:-1], 0.9)
+        markers = MarkerData.from_dense(JOINTS15, uv, conf)
+        bare = MultiViewSequence(cameras=seq.cameras, frame_rate=seq.frame_rate, n_frames=seq.n_frames,
+                                 reader=seq._reader, backgrounds=seq.backgrounds(), markers=markers,
+                                 frame_times=seq.frame_times)
+        write_sequence(out, bare)
+    return out
+
+
+def test_keypoint_cost_matches_its_reference_and_is_robust():
+    from swarmpose.camera import Camera
+
+    rng = np.random.default_rng(1)
+    cams = [Camera.look_at(f"c{i}", [3000 * np.cos(a), 3000 * np.sin(a), 1500], [0, 0, 1000],
+                           dist=(0.05, 0.01, 0, 0, 0)) for i, a in enumerate((0.2, 1.9, 3.5))]
+    truth = rng.normal(0, 300, (15, 3)) + [0, 0, 1000]
+    kp = reproject(cams, truth)
+    conf = rng.uniform(0.2, 1.0, (3, 15))
+    kp[1, 4] = np.nan
+    kp[2] = kp[2][SWAP]  # one view with left and right exchanged
+    poses = truth[None] + rng.normal(0, 40, (6, 15, 3))
+    fast = keypoint_cost(poses, cams, kp, conf)
+    assert np.allclose(fast, keypoint_cost_reference(poses, cams, kp, conf), atol=1e-12)
+    assert keypoint_cost(truth[None], cams, kp, conf)[0] < 1e-12  # the swapped view costs nothing either
+    far = truth[None] + [0, 5000, 0]
+    assert 0.9 < keypoint_cost(far, cams, kp, conf)[0] <= 1.0  # bounded: one term costs at most 1
+
+
+@pytest.fixture(scope="module")
+def bare_sequence(short_sequence: Path, tmp_path_factory) -> Path:
+    return without_truth(short_sequence, tmp_path_factory.mktemp("bare") / "walk", noise_px=1.0)
+
+
+def test_a_sequence_without_truth_is_tracked_from_its_keypoints(bare_sequence: Path, short_sequence: Path,
+                                                                  tmp_path: Path):
+    from typer.testing import CliRunner
+
+    from swarmpose.cli.app import app
+
+    out = tmp_path / "res"
+    res = CliRunner().invoke(app, ["track", str(bare_sequence), "--algo", "sppso", "--max-frames", "3", "--out",
+                                   str(out), "--views", "BW1,BW2,BW3", "--fitness-options", "keypoints=1",
+                                   "--json"])
+    assert res.exit_code == 0, res.output
+    summary = json.loads(res.stdout)
+    assert summary["ground_truth"] is False and summary["d_mean_mm"] is None and summary["views"] == "BW1,BW2,BW3"
+    subject = json.loads((out / "subject.json").read_text())
+    assert "triangulated from the detector's keypoints" in subject["source"]
+    with np.load(out / "run_000" / "joints.npz") as z:
+        joints, gt = z["joints"], z["gt_joints"]
+    assert np.isnan(gt).all()
+    with open_sequence(short_sequence) as seq:  # scored afterwards against the withheld truth
+        truth = np.asarray(seq.gt_joints)[seq.subsample(20)[:3]]
+    err = np.linalg.norm(joints - truth, axis=-1).mean(axis=1)
+    assert err[0] < 50.0, err
+    rep = CliRunner().invoke(app, ["report", str(out), "--frames", "1"])
+    assert rep.exit_code == 0, rep.output
+    text = (out / "report" / "summary.md").read_text()
+    assert "No ground truth was given" in text and "| BW4 |" in text
+    held = json.loads((out / "report" / "heldout.json").read_text())[0]
+    assert held["camera"] == "BW4" and held["model_px"]["median"] < 15 and held["iou"]["median"] > 0.5
+
+
+def test_without_truth_or_keypoints_the_error_says_what_to_do(short_sequence: Path, tmp_path: Path):
+    from swarmpose.errors import DataError
+    from swarmpose.track.tracker import TrackConfig, prepare_track
+
+    with open_sequence(short_sequence) as seq:
+        bare = MultiViewSequence(cameras=seq.cameras, frame_rate=seq.frame_rate, n_frames=seq.n_frames,
+                                 reader=seq._reader, backgrounds=seq.backgrounds())
+        write_sequence(tmp_path / "bare", bare)
+    with pytest.raises(DataError, match="no ground truth and no body keypoints"):
+        prepare_track(tmp_path / "bare", TrackConfig(algo="sppso", height_mm=1750))
+    with pytest.raises(Exception, match="no camera 'cam9'"):
+        prepare_track(short_sequence, TrackConfig(algo="sppso", views="BW1,cam9"))
