@@ -16,20 +16,11 @@ from pathlib import Path
 
 import numpy as np
 
-from swarmpose.body.anthropometry import HEIGHT_FRACTIONS, subject_from_height
+from swarmpose.body.anthropometry import HEIGHT_FRACTIONS, limb_lengths, subject_from_height
 from swarmpose.body.spec import load_spec
 from swarmpose.io.mocap import load_clip, subject_from_clip
 
 MOCAP = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "mocap"
-LIMBS = {"thigh": "l_thigh", "shank": "l_shank", "upper arm": "l_upper_arm", "forearm": "l_forearm"}
-
-
-def lengths(subject) -> dict[str, float]:
-    o = subject.offsets
-    out = {k: abs(o[v][2]) for k, v in LIMBS.items()}
-    out["hip width"] = abs(o["l_pelvis_to_hip"][1] - o["r_pelvis_to_hip"][1])
-    out["shoulder width"] = abs(o["l_thorax_to_shoulder"][1] - o["r_thorax_to_shoulder"][1])
-    return out
 
 
 def main() -> None:
@@ -48,7 +39,7 @@ def main() -> None:
         span = (abs(o["l_pelvis_to_hip"][2]) + abs(o["l_thigh"][2]) + abs(o["l_shank"][2]) + o["spine_to_thorax"][2]
                 + o["neck_to_head_top"][2])
         height = span / (1.0 - HEIGHT_FRACTIONS["ankle"])
-        a, b = lengths(measured), lengths(subject_from_height(spec, height))
+        a, b = limb_lengths(measured), limb_lengths(subject_from_height(spec, height))
         rows.append({"clip": clip.stem, "height_mm": height, "measured_mm": a, "from_height_mm": b,
                      "error_pct": {k: 100.0 * (b[k] - a[k]) / a[k] for k in a}})
     if args.json:

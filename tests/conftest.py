@@ -21,3 +21,21 @@ def mocap_dir() -> Path:
 @pytest.fixture(scope="session")
 def walk_clip_path(mocap_dir: Path) -> Path:
     return mocap_dir / "cmu_16_16_walk.bvh"
+
+
+@pytest.fixture()
+def no_mediapipe(monkeypatch):
+    """MediaPipe made unimportable for one test (whether or not this environment has it)."""
+    import builtins
+    import sys
+
+    real_import = builtins.__import__
+
+    def refuse(name, *args, **kwargs):
+        if name == "mediapipe" or name.startswith("mediapipe."):
+            raise ModuleNotFoundError(f"No module named {name!r}")
+        return real_import(name, *args, **kwargs)
+
+    monkeypatch.setattr(builtins, "__import__", refuse)
+    for name in [n for n in sys.modules if n == "mediapipe" or n.startswith("mediapipe.")]:
+        monkeypatch.delitem(sys.modules, name)

@@ -3,8 +3,6 @@ three frames of the Pose2Sim demo recording when it is installed."""
 
 from __future__ import annotations
 
-import builtins
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -17,19 +15,9 @@ from swarmpose.errors import ConfigError
 VIDEOS = Path(__file__).resolve().parents[3] / "shared" / "data" / "recordings" / "pose2sim-demo-single" / "videos"
 
 
-def test_missing_mediapipe_says_how_to_install(monkeypatch):
+def test_missing_mediapipe_says_how_to_install(no_mediapipe):
     from swarmpose.detection.mediapipe_pose import MediaPipePose
 
-    real_import = builtins.__import__
-
-    def no_mediapipe(name, *args, **kwargs):
-        if name == "mediapipe" or name.startswith("mediapipe."):
-            raise ModuleNotFoundError(f"No module named {name!r}")
-        return real_import(name, *args, **kwargs)
-
-    monkeypatch.setattr(builtins, "__import__", no_mediapipe)
-    for name in [n for n in sys.modules if n == "mediapipe" or n.startswith("mediapipe.")]:
-        monkeypatch.delitem(sys.modules, name)
     with pytest.raises(ConfigError) as info:
         MediaPipePose()
     message = str(info.value)

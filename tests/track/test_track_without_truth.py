@@ -96,3 +96,17 @@ def test_without_truth_or_keypoints_the_error_says_what_to_do(short_sequence: Pa
         prepare_track(tmp_path / "bare", TrackConfig(algo="sppso", height_mm=1750))
     with pytest.raises(Exception, match="no camera 'cam9'"):
         prepare_track(short_sequence, TrackConfig(algo="sppso", views="BW1,cam9"))
+
+
+def test_refined_keypoints_fits_the_keypoints(bare_sequence: Path, short_sequence: Path, tmp_path: Path):
+    """With keypoints close to the truth the keypoint term and the per-frame keypoint IK bring every frame near it."""
+    from swarmpose.track.tracker import TrackConfig, prepare_track, run_tracker
+
+    cfg = TrackConfig(algo="refined-keypoints", max_frames=3, height_mm=1700)
+    setup = prepare_track(bare_sequence, cfg)
+    result = run_tracker(setup, 0)
+    assert result.part_seconds["keypoint_ik"] > 0
+    with open_sequence(short_sequence) as seq:
+        truth = np.asarray(seq.gt_joints)[seq.subsample(20)[:3]]
+    err = np.linalg.norm(result.joints - truth, axis=-1).mean(axis=1)
+    assert (err < 35.0).all(), err

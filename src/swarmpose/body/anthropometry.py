@@ -36,7 +36,7 @@ from swarmpose.body.subject import subject_from_joints
 from swarmpose.errors import ConfigError
 from swarmpose.joints import JOINT_INDEX
 
-__all__ = ["HEIGHT_FRACTIONS", "WIDTH_FRACTIONS", "standing_joints15", "subject_from_height"]
+__all__ = ["HEIGHT_FRACTIONS", "WIDTH_FRACTIONS", "standing_joints15", "subject_from_height", "limb_lengths"]
 
 #: Heights above the floor as fractions of stature (Winter 2009, Fig. 4.1).
 HEIGHT_FRACTIONS = {"head_top": 1.000, "shoulder": 0.818, "elbow": 0.630, "wrist": 0.485, "hip": 0.530,
@@ -88,3 +88,14 @@ def subject_from_height(spec: BodySpec, height_mm: float, *, name: str | None = 
     note = subject.source.split("; ", 1)[-1]
     return Subject(name=subject.name, offsets=subject.offsets, cones=subject.cones,
                    source=f"stature {float(height_mm):.0f} mm, Winter (2009) Fig. 4.1 proportions; {note}")
+
+
+def limb_lengths(subject: Subject) -> dict[str, float]:
+    """A ``balan31``-layout subject's left thigh, shank, upper arm and forearm lengths and its hip and shoulder
+    widths, mm (what the proportion tables compare)."""
+    o = subject.offsets
+    out = {name: abs(o[key][2]) for name, key in (("thigh", "l_thigh"), ("shank", "l_shank"),
+                                                   ("upper arm", "l_upper_arm"), ("forearm", "l_forearm"))}
+    out["hip width"] = abs(o["l_pelvis_to_hip"][1] - o["r_pelvis_to_hip"][1])
+    out["shoulder width"] = abs(o["l_thorax_to_shoulder"][1] - o["r_thorax_to_shoulder"][1])
+    return out

@@ -8,7 +8,7 @@ import typer
 from swarmpose.cli.app import app
 from swarmpose.cli.common import DEFAULT_ALGO, console, err_console, fail_on_user_error, print_json
 
-bench_app = typer.Typer(help="Benchmarks: fitness throughput, and where a tracking run spends its time.",
+bench_app = typer.Typer(help="Benchmarks: fitness throughput, where a tracking run spends its time, person detection speed.",
                         no_args_is_help=True)
 app.add_typer(bench_app, name="bench")
 
@@ -147,3 +147,6 @@ def track(
                   highlight=False)
     console.print(f"peak memory {res['peak_rss_mb']:.0f} MB; D_mean {res['d_mean_mm']:.1f} mm"
                   if res["d_mean_mm"] is not None else f"peak memory {res['peak_rss_mb']:.0f} MB", highlight=False)
+
+
+from swarmpose.cli import bench_detect  # noqa: E402,F401 - registers `bench detect` on bench_app

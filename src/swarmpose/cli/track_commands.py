@@ -56,7 +56,7 @@ def default_results_name(name: str, cfg: TrackConfig) -> str:
     if cfg.height_mm is not None:
         parts.append(f"h{cfg.height_mm:g}mm")
     if cfg.views:
-        parts.append("views-" + folder_slug(cfg.views.replace(",", "+")))
+        parts.append("views-" + folder_slug(cfg.views))
     return "-".join(parts)
 
 

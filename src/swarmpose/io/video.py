@@ -58,7 +58,7 @@ class FrameSource:
     @property
     def name(self) -> str:
         """The file or folder name without its suffix (``cam01`` for ``cam01.mp4``)."""
-        return self.path.stem if self.kind == "video" else self.path.name
+        return self.path.name if self.path.is_dir() else self.path.stem
 
     def frames(self, indices: np.ndarray | list[int]) -> Iterator[tuple[int, np.ndarray]]:
         """Yield ``(k, frame)`` for each requested frame index, in increasing order, as BGR uint8 (H, W, 3).
@@ -154,10 +154,16 @@ def _open_images(path: Path) -> FrameSource:
 
 
 def open_frames(path: str | os.PathLike[str]) -> FrameSource:
-    """Open a video file or an image folder as a :class:`FrameSource` (no frame decoded but the first)."""
+    """Open a video file, an image folder or a single image as a :class:`FrameSource` (no frame decoded but
+    the first)."""
     p = Path(path)
     if not p.exists():
         raise DataError(f"{p}: no such video file or image folder")
     if p.is_dir():
         return _open_images(p)
+    if p.suffix.lower() in IMAGE_SUFFIXES:  # one picture: a one-frame source (an empty-scene background)
+        img = cv2.imread(str(p), cv2.IMREAD_COLOR)
+        if img is None:
+            raise FormatError("cannot be decoded as an image", path=p)
+        return FrameSource(path=p, n_frames=1, fps=None, size=(img.shape[1], img.shape[0]), kind="images", _files=[p])
     return _open_video(p)

@@ -387,6 +387,9 @@ class RefinedConfig(OptimizerConfig):
     recovery : Mapping
         Settings of the tracker's loss detection and wide re-search (:mod:`swarmpose.track.recovery`),
         read by the tracker only; empty: none.
+    keypoint_ik : bool
+        The tracker fits each frame's pose to the triangulated keypoints from where the search left it
+        (:func:`swarmpose.track.start.keypoint_ik`), where the sequence has keypoints; read by the tracker only.
     """
 
     base: OptimizerConfig | None = None
@@ -394,6 +397,7 @@ class RefinedConfig(OptimizerConfig):
     refine_step: float = 0.5
     refine_options: Mapping[str, Any] = field(default_factory=dict)
     recovery: Mapping[str, Any] = field(default_factory=dict)
+    keypoint_ik: bool = False
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -560,12 +564,14 @@ KEYPOINT_WEIGHT = 2.0
 
 
 def _refined_keypoints(model: Any, fps: float) -> RefinedConfig:
-    """``refined`` with the keypoint term (weight :data:`KEYPOINT_WEIGHT`) in every search and refinement."""
+    """``refined`` with the keypoint term (weight :data:`KEYPOINT_WEIGHT`) in every search and refinement, and the
+    tracker's keypoint IK: each frame's pose is then fitted to the tracked views' triangulated keypoints from
+    where the search left it."""
     cfg = _refined(model, fps)
     kp = {"keypoints": KEYPOINT_WEIGHT}
     base = dataclasses.replace(cfg.base, fitness_options={**cfg.base.fitness_options, **kp})
     return dataclasses.replace(cfg, name="refined-keypoints", base=base,
-                               refine_options={**cfg.refine_options, **kp})
+                               refine_options={**cfg.refine_options, **kp}, keypoint_ik=True)
 
 
 def _aapso(name: str, reference: str, adaptive: bool) -> Callable[..., AAPSOConfig]:

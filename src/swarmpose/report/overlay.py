@@ -90,13 +90,13 @@ def _draw_view(tile: np.ndarray, polys: list[np.ndarray], depths: list[float], s
         cv2.circle(tile, c, (line + 1) * _ONE, gt_col, -1, cv2.LINE_AA, _SHIFT)
 
 
-def _legend(width: int, height: int, scale: float, detections: bool = False) -> np.ndarray:
+def _legend(width: int, height: int, scale: float, detections: bool = False, truth: bool = True) -> np.ndarray:
     bar = np.full((height, width, 3), 40, np.uint8)
     x = 10
     y = height // 2
     s = 0.5 * scale
     items = [(SIDE_RGB["left"], "left limbs"), (SIDE_RGB["right"], "right limbs"),
-             (SIDE_RGB["center"], "torso / head"), (GT_RGB, "ground truth (15 joints)")]
+             (SIDE_RGB["center"], "torso / head")] + ([(GT_RGB, "ground truth (15 joints)")] if truth else [])
     if detections:
         items.append((DETECTION_RGB, "2D detections"))
     for rgb, text in items:
@@ -346,13 +346,15 @@ def render_overlay(
         cv2.putText(head, title, (10, int(24 * ts) + 2), _FONT, 0.75 * ts, (245, 245, 245), 1, cv2.LINE_AA)
         parts.insert(0, head)
     if legend:
-        parts.append(_legend(grid.shape[1], int(30 * ts) + 6, ts * 1.4, detections is not None))
+        truth = gt_joints is not None and bool(np.isfinite(np.asarray(gt_joints, dtype=np.float64)).any())
+        parts.append(_legend(grid.shape[1], int(30 * ts) + 6, ts * 1.4, detections is not None, truth))
     out = np.vstack(parts)
     return cv2.cvtColor(out, cv2.COLOR_BGR2RGB)
 
 
 def choose_frames(results: Results, count: int, run: int = 0) -> np.ndarray:
-    """Positions (into the processed frames) of ``count`` frames: evenly spread, with the worst one.
+    """Positions (into the processed frames) of ``count`` frames: evenly spread, with the worst one (without
+    ground truth, evenly spread only).
 
     Parameters
     ----------
@@ -373,6 +375,8 @@ def choose_frames(results: Results, count: int, run: int = 0) -> np.ndarray:
     if count >= T:
         return np.arange(T, dtype=np.int64)
     d = results.run(run).d_per_frame
+    if not np.isfinite(d).any():  # no ground truth: no worst frame, the frames evenly spread
+        return np.unique(np.round(np.linspace(0, T - 1, count)).astype(np.int64))
     pos = {int(i) for i in np.round(np.linspace(0, T - 1, count - 1))} if count > 1 else set()
     for i in np.argsort(-d, kind="stable"):  # the worst frame, then the next worst until full
         if len(pos) >= count:
@@ -403,7 +407,10 @@ def _title(res: Results, run: int, i: int) -> str:
     algo = str(res.config.get("algo", "")).upper()
     fps = f" {res.fps:g} fps" if res.fps else ""
     d = float(r.d_per_frame[i])
-    err = f"D = {d:.1f} mm" if np.isfinite(d) else "no valid ground truth"
+    if np.isfinite(d):
+        err = f"D = {d:.1f} mm"
+    else:
+        err = "no ground truth" if res.summary.get("ground_truth", True) is False else "no valid ground truth"
     return (f"frame {int(r.frame_indices[i])}   t = {float(r.frame_times[i]):.3f} s   "
             f"{err}      {algo}{fps}, run {run}")
 

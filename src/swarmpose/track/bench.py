@@ -26,6 +26,7 @@ PART_HELP = {
     "fitness": "fitness kernels (kinematics, projection, silhouette, edges; the distance maps)",
     "priors": "hard priors: joint limits and limb collisions",
     "recovery": "loss detection and re-search, without fitness and priors",
+    "keypoint_ik": "the fit of each frame's pose to its triangulated keypoints (refined-keypoints)",
     "writing": "results written per frame (progress files)",
 }
 

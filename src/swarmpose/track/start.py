@@ -17,7 +17,7 @@ import numpy as np
 from swarmpose.joints import JOINTS15
 from swarmpose.triangulation import residuals, triangulate
 
-__all__ = ["keypoint_joints", "has_keypoints", "fill_gaps", "MIN_CONFIDENCE"]
+__all__ = ["keypoint_joints", "keypoint_ik", "has_keypoints", "fill_gaps", "MIN_CONFIDENCE"]
 
 #: Keypoints below this confidence are not used (MediaPipe's visibility of a hidden joint).
 MIN_CONFIDENCE = 0.3
@@ -72,3 +72,17 @@ def fill_gaps(joints: np.ndarray, k: int = 0, reach: int = 10) -> np.ndarray:
             if np.isfinite(out[j]).all():
                 break
     return out
+
+
+def keypoint_ik(model: Any, joints: np.ndarray, x0: np.ndarray, constraint: Any = None) -> np.ndarray | None:
+    """The pose nearest ``x0`` that fits one frame's triangulated joints ``(15, 3)`` (an IK fit from ``x0``,
+    polished on the joint residuals), or None when a joint is missing or the fit breaks ``constraint``."""
+    from swarmpose.body.ik import fit_ik
+
+    j = np.asarray(joints, dtype=np.float64)
+    if not np.isfinite(j).all():
+        return None
+    x = fit_ik(model, j[None], init=np.asarray(x0, dtype=np.float64)).floor_params[0]
+    if constraint is not None and not bool(np.asarray(constraint(x[None])).ravel()[0]):
+        return None
+    return x

@@ -659,9 +659,14 @@ def run_tracker(
     seq = open_sequence(setup.sequence_path)
     views = tracked_views(seq, cfg.views)
     backgrounds = seq.backgrounds() if cfg.fitness_kind in IMAGE_FITNESS else None
-    from swarmpose.track.start import has_keypoints
+    from swarmpose.track.start import fill_gaps, has_keypoints, keypoint_ik
 
     keypoints = seq.marker_data.to_dense() if cfg.fitness_kind in IMAGE_FITNESS and has_keypoints(seq) else None
+    kp_joints = None  # the tracked views' triangulated keypoints, for the configurations that fit them per frame
+    if getattr(algo, "keypoint_ik", False) and has_keypoints(seq):
+        from swarmpose.track.start import keypoint_joints
+
+        kp_joints = keypoint_joints(seq, setup.frame_indices, views=views)
     try:
         for i in range(start_k, T):
             if stop_after is not None and i >= stop_after:
@@ -705,6 +710,15 @@ def run_tracker(
                                       model.lower, model.upper)
                 for limb in rec.recovered:
                     recovered[i, LIMB_NAMES.index(limb)] = True
+            if kp_joints is not None:
+                with timer.part("keypoint_ik"):
+                    x_ik = keypoint_ik(model, fill_gaps(kp_joints, i, reach=2), x_prev, constraint)
+                if x_ik is not None:
+                    ik_score = float(fitness.evaluate(x_ik[None], {**algo.refine_options, **extra_options})[0])
+                    n_evals += 1
+                    if ik_score > score:
+                        x_prev, score = x_ik, ik_score
+                        carry = _recentre(carry, x_prev, [np.arange(model.n_params)], model.lower, model.upper)
             params[i], scores[i], evals[i] = x_prev, score, n_evals
             seconds[i] = time.perf_counter() - t0
             if store is not None:

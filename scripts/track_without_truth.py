@@ -1,0 +1,126 @@
+"""The no-mocap path on a synthetic clip, scored afterwards against the ground truth it withheld.
+
+For each clip: the synthesised sequence (``swarmpose track CLIP``'s, cached) is exported as per-camera PNG
+folders, its empty-scene backgrounds and a TOML calibration (no ground truth, no source clip, no subject);
+``swarmpose import`` reads it back with the detector (keypoints; silhouettes by background subtraction
+against the exported backgrounds, as the tracker computes them on the original); ``track --algo
+refined-keypoints --height H`` tracks it with H the clip skeleton's stature; and the track is scored against
+the withheld joints. Beside it: ``refined`` on the original sequence, started from the IK fit of the truth,
+and the subject's limb lengths against the skeleton's (from stature alone, then from the keypoints).
+
+Run:  .venv/bin/python scripts/track_without_truth.py [--clips walk turn] [--fps 20] [--max-frames N] [--json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from swarmpose.body.anthropometry import HEIGHT_FRACTIONS, limb_lengths, subject_from_height
+from swarmpose.body.spec import Subject, load_spec
+from swarmpose.export.recording import export_recording
+from swarmpose.io.mocap import load_clip, subject_from_clip
+from swarmpose.io.sequence import open_sequence
+from swarmpose.synth.synthesize import cached_sequence
+
+MOCAP = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "mocap"
+CLI = [sys.executable, "-m", "swarmpose"]
+
+
+def stature(subject) -> float:
+    o = subject.offsets
+    span = (abs(o["l_pelvis_to_hip"][2]) + abs(o["l_thigh"][2]) + abs(o["l_shank"][2]) + o["spine_to_thorax"][2]
+            + o["neck_to_head_top"][2])
+    return span / (1.0 - HEIGHT_FRACTIONS["ankle"])
+
+
+def run(cmd: list[str]) -> dict:
+    out = subprocess.run(cmd, capture_output=True, text=True)
+    if out.returncode != 0:
+        raise SystemExit(f"{' '.join(cmd)} failed:\n{out.stderr[-2000:]}")
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def scored(results: Path, truth: np.ndarray) -> dict:
+    with np.load(results / "run_000" / "joints.npz") as z:
+        joints = z["joints"]
+    d = np.linalg.norm(joints - truth, axis=-1).mean(axis=1)
+    return {"frame0_mm": float(d[0]), "d_mean_mm": float(d.mean()), "d_mean_first20_mm": float(d[:20].mean()),
+            "d_max_mm": float(d.max())}
+
+
+def one_clip(clip: Path, work: Path, fps: float, max_frames: int | None) -> dict:
+    seq_path = cached_sequence(clip, progress=False)
+    spec = load_spec("balan31")
+    truth_subject = subject_from_clip(spec, load_clip(clip))
+    height = stature(truth_subject)
+    rec, imported = work / f"{clip.stem}-recording", work / f"{clip.stem}-imported"
+    for p in (rec, imported):
+        shutil.rmtree(p, ignore_errors=True)
+    with open_sequence(seq_path) as seq:
+        export_recording(seq, rec, calibration_format="toml", video=False)
+        bg = rec / "backgrounds"
+        bg.mkdir()
+        for c, cam in enumerate(seq.cameras):
+            cv2.imwrite(str(bg / f"{cam.name}.png"), seq.backgrounds()[c])
+        frames = seq.subsample(fps)[:max_frames]
+        truth = np.asarray(seq.gt_joints)[frames]
+        names = [c.name for c in seq.cameras]
+        rate = seq.frame_rate
+    run([*CLI, "import", *[str(rec / n) for n in names], "-c", str(rec / "calibration.toml"), "-o", str(imported),
+         "--silhouettes", "background", *sum((["--background", str(rec / "backgrounds" / f"{n}.png")] for n in names),
+                                            []), "--fps", f"{rate:g}", "--no-page", "--json"])
+    extra = [] if max_frames is None else ["--max-frames", str(max_frames)]
+    no_truth = work / f"{clip.stem}-refined-keypoints"
+    plain = work / f"{clip.stem}-refined-ik"
+    for p in (no_truth, plain):
+        shutil.rmtree(p, ignore_errors=True)
+    run([*CLI, "track", str(imported), "--algo", "refined-keypoints", "--height", f"{height:.0f}", "--fps", f"{fps:g}",
+         "--out", str(no_truth), "--json", *extra])
+    run([*CLI, "track", str(seq_path), "--algo", "refined", "--fps", f"{fps:g}", "--out", str(plain), "--json",
+         *extra])
+    kp_subject = Subject.load(no_truth / "subject.json")
+    true_len, kp_len = limb_lengths(truth_subject), limb_lengths(kp_subject)
+    h_len = limb_lengths(subject_from_height(spec, height))
+    return {"clip": clip.stem, "height_mm": height, "frames": int(len(truth)),
+            "without_truth": scored(no_truth, truth), "refined_from_ik": scored(plain, truth),
+            "limbs_mm": {k: {"skeleton": true_len[k], "stature": h_len[k], "keypoints": kp_len[k]} for k in true_len}}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--clips", nargs="*", default=["cmu_16_16_walk", "cmu_16_18_turn"])
+    ap.add_argument("--fps", type=float, default=20.0)
+    ap.add_argument("--max-frames", type=int, default=None)
+    ap.add_argument("--work", type=Path, default=Path("results/without-truth"))
+    ap.add_argument("--json", action="store_true")
+    args = ap.parse_args()
+    args.work.mkdir(parents=True, exist_ok=True)
+    rows = [one_clip(MOCAP / f"{c}.bvh", args.work, args.fps, args.max_frames) for c in args.clips]
+    if args.json:
+        print(json.dumps({"clips": rows}))
+        return
+    print("| clip | stature mm | frame 0 mm | D_mean first 20 | D_mean | D_max | refined from the IK fit: D_mean |")
+    print("|---|---:|---:|---:|---:|---:|---:|")
+    for r in rows:
+        w, p = r["without_truth"], r["refined_from_ik"]
+        print(f"| {r['clip']} | {r['height_mm']:.0f} | {w['frame0_mm']:.1f} | {w['d_mean_first20_mm']:.1f} | "
+              f"{w['d_mean_mm']:.1f} | {w['d_max_mm']:.1f} | {p['d_mean_mm']:.1f} |")
+    print("\n| clip | limb | skeleton mm | from stature | from keypoints |")
+    print("|---|---|---:|---:|---:|")
+    for r in rows:
+        for k, v in r["limbs_mm"].items():
+            s, h, kp = v["skeleton"], v["stature"], v["keypoints"]
+            print(f"| {r['clip']} | {k} | {s:.0f} | {h:.0f} ({100 * (h - s) / s:+.0f} %) | "
+                  f"{kp:.0f} ({100 * (kp - s) / s:+.0f} %) |")
+
+
+if __name__ == "__main__":
+    main()
