@@ -126,3 +126,21 @@ def test_an_existing_folder_is_kept_unless_forced(rec):
     res, _ = run_import(root, folders, None, "--force")
     assert "refusing to replace a folder that holds no sequence" in error_of(res)
     assert (root / "seq" / "notes.txt").read_text() == "mine"
+
+
+def test_frame_sources_video_folder_and_single_image(rec, tmp_path: Path):
+    from swarmpose.io.video import open_frames
+
+    root, folders = rec
+    folder = open_frames(folders[0])
+    assert (folder.name, folder.n_frames, folder.size, folder.fps) == ("cam01", 6, (320, 240), None)
+    one = open_frames(sorted(folders[0].iterdir())[2])
+    assert (one.name, one.n_frames) == ("000002", 1)
+    _, img = next(one.frames([0]))
+    assert img.shape == (240, 320, 3) and img[0, 1, 0] == 2  # the frame number the fixture wrote
+    with pytest.raises(Exception, match=r"frames 0\.\.6 requested, it has 6"):
+        list(folder.frames(range(7)))
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    with pytest.raises(Exception, match="holds no images"):
+        open_frames(empty)
