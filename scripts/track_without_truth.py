@@ -8,7 +8,9 @@ refined-keypoints --height H`` tracks it with H the clip skeleton's stature; and
 the withheld joints. Beside it: ``refined`` on the original sequence, started from the IK fit of the truth,
 and the subject's limb lengths against the skeleton's (from stature alone, then from the keypoints).
 
-Run:  .venv/bin/python scripts/track_without_truth.py [--clips walk turn] [--fps 20] [--max-frames N] [--json]
+Run:  .venv/bin/python scripts/track_without_truth.py [--clips CLIP ...] [--fps 20] [--max-frames N] [--import-only]
+      [--json]
+(--import-only: import and fit where the truth's pelvis and thorax lie along the keypoints' trunk, no tracking.)
 """
 
 from __future__ import annotations
@@ -51,12 +53,39 @@ def run(cmd: list[str]) -> dict:
 def scored(results: Path, truth: np.ndarray) -> dict:
     with np.load(results / "run_000" / "joints.npz") as z:
         joints = z["joints"]
-    d = np.linalg.norm(joints - truth, axis=-1).mean(axis=1)
+    from swarmpose.joints import JOINTS15
+
+    dist = np.linalg.norm(joints - truth, axis=-1)
+    d = dist.mean(axis=1)
     return {"frame0_mm": float(d[0]), "d_mean_mm": float(d.mean()), "d_mean_first20_mm": float(d[:20].mean()),
-            "d_max_mm": float(d.max())}
+            "d_max_mm": float(d.max()), "per_joint_mm": dict(zip(JOINTS15, dist.mean(axis=0).tolist(), strict=True))}
 
 
-def one_clip(clip: Path, work: Path, fps: float, max_frames: int | None) -> dict:
+def trunk_fit(imported: Path, truth_all: np.ndarray) -> dict:
+    """Where the truth's pelvis and thorax lie along the trunk of the triangulated keypoints: ``pelvis = hip_mid +
+    p (shoulder_mid - hip_mid)``, ``thorax = shoulder_mid - t (shoulder_mid - hip_mid)``, least squares over all
+    frames (the fractions behind ``swarmpose.detection.joints.PELVIS_FRACTION`` and ``THORAX_FRACTION``), and the
+    mean distance to the truth at the midpoints, at the fitted fractions and at the shipped ones."""
+    from swarmpose.detection.joints import PELVIS_FRACTION, THORAX_FRACTION
+    from swarmpose.joints import JOINT_INDEX as J
+    from swarmpose.track.start import keypoint_joints
+
+    with open_sequence(imported) as seq:
+        K = keypoint_joints(seq, np.arange(seq.n_frames))
+    hip = (K[:, J["l_hip"]] + K[:, J["r_hip"]]) / 2
+    sh = (K[:, J["l_shoulder"]] + K[:, J["r_shoulder"]]) / 2
+    ok = np.isfinite(hip).all(axis=1) & np.isfinite(sh).all(axis=1)
+    d = (sh - hip)[ok]
+    out = {}
+    for name, base, sign, shipped in (("pelvis", hip, 1.0, PELVIS_FRACTION), ("thorax", sh, -1.0, THORAX_FRACTION)):
+        r = (truth_all[:, J[name]] - base)[ok]
+        f = sign * float((r * d).sum() / (d * d).sum())
+        errs = [float(np.linalg.norm(r - sign * x * d, axis=1).mean()) for x in (0.0, f, shipped)]
+        out[name] = {"fraction": f, "midpoint_mm": errs[0], "fitted_mm": errs[1], "shipped_mm": errs[2]}
+    return out
+
+
+def one_clip(clip: Path, work: Path, fps: float, max_frames: int | None, import_only: bool = False) -> dict:
     seq_path = cached_sequence(clip, progress=False)
     spec = load_spec("balan31")
     truth_subject = subject_from_clip(spec, load_clip(clip))
@@ -71,12 +100,16 @@ def one_clip(clip: Path, work: Path, fps: float, max_frames: int | None) -> dict
         for c, cam in enumerate(seq.cameras):
             cv2.imwrite(str(bg / f"{cam.name}.png"), seq.backgrounds()[c])
         frames = seq.subsample(fps)[:max_frames]
-        truth = np.asarray(seq.gt_joints)[frames]
+        truth_all = np.asarray(seq.gt_joints)
+        truth = truth_all[frames]
         names = [c.name for c in seq.cameras]
         rate = seq.frame_rate
     run([*CLI, "import", *[str(rec / n) for n in names], "-c", str(rec / "calibration.toml"), "-o", str(imported),
          "--silhouettes", "background", *sum((["--background", str(rec / "backgrounds" / f"{n}.png")] for n in names),
                                             []), "--fps", f"{rate:g}", "--no-page", "--json"])
+    trunk = trunk_fit(imported, truth_all)
+    if import_only:
+        return {"clip": clip.stem, "height_mm": height, "trunk": trunk}
     extra = [] if max_frames is None else ["--max-frames", str(max_frames)]
     no_truth = work / f"{clip.stem}-refined-keypoints"
     plain = work / f"{clip.stem}-refined-ik"
@@ -89,7 +122,7 @@ def one_clip(clip: Path, work: Path, fps: float, max_frames: int | None) -> dict
     kp_subject = Subject.load(no_truth / "subject.json")
     true_len, kp_len = limb_lengths(truth_subject), limb_lengths(kp_subject)
     h_len = limb_lengths(subject_from_height(spec, height))
-    return {"clip": clip.stem, "height_mm": height, "frames": int(len(truth)),
+    return {"clip": clip.stem, "height_mm": height, "frames": int(len(truth)), "trunk": trunk,
             "without_truth": scored(no_truth, truth), "refined_from_ik": scored(plain, truth),
             "limbs_mm": {k: {"skeleton": true_len[k], "stature": h_len[k], "keypoints": kp_len[k]} for k in true_len}}
 
@@ -100,13 +133,24 @@ def main() -> None:
     ap.add_argument("--fps", type=float, default=20.0)
     ap.add_argument("--max-frames", type=int, default=None)
     ap.add_argument("--work", type=Path, default=Path("results/without-truth"))
+    ap.add_argument("--import-only", action="store_true", help="import and fit the trunk joints, no tracking")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
     args.work.mkdir(parents=True, exist_ok=True)
-    rows = [one_clip(MOCAP / f"{c}.bvh", args.work, args.fps, args.max_frames) for c in args.clips]
+    rows = [one_clip(MOCAP / f"{c}.bvh", args.work, args.fps, args.max_frames, args.import_only) for c in args.clips]
     if args.json:
         print(json.dumps({"clips": rows}))
         return
+    print("| clip | pelvis fraction | pelvis mm: midpoint / fitted / shipped | thorax fraction | "
+          "thorax mm: midpoint / fitted / shipped |")
+    print("|---|---:|---|---:|---|")
+    for r in rows:
+        p, t = r["trunk"]["pelvis"], r["trunk"]["thorax"]
+        print(f"| {r['clip']} | {p['fraction']:.2f} | {p['midpoint_mm']:.0f} / {p['fitted_mm']:.0f} / {p['shipped_mm']:.0f} "
+              f"| {t['fraction']:.2f} | {t['midpoint_mm']:.0f} / {t['fitted_mm']:.0f} / {t['shipped_mm']:.0f} |")
+    if args.import_only:
+        return
+    print()
     print("| clip | stature mm | frame 0 mm | D_mean first 20 | D_mean | D_max | refined from the IK fit: D_mean |")
     print("|---|---:|---:|---:|---:|---:|---:|")
     for r in rows:

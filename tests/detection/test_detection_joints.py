@@ -11,8 +11,10 @@ from swarmpose.detection.joints import (
     CONFIDENCE_SCALE,
     HEAD_TOP_FRACTION,
     JOINT_SOURCES,
+    PELVIS_FRACTION,
     SWAP15,
     SWAP33,
+    THORAX_FRACTION,
     to_joints15,
 )
 from swarmpose.errors import ShapeError
@@ -38,13 +40,16 @@ def test_direct_joints_are_their_landmarks(landmarks):
             assert jc[J[f"{side}_{part}"]] == conf[B[f"{mp_side}_{part}"]]
 
 
-def test_midpoints_and_min_confidence(landmarks):
+def test_trunk_joints_along_the_trunk_and_min_confidence(landmarks):
     kp, conf = landmarks
     joints, jc = to_joints15(kp, conf)
-    np.testing.assert_allclose(joints[J["thorax"]], (kp[B["left_shoulder"]] + kp[B["right_shoulder"]]) / 2)
-    np.testing.assert_allclose(joints[J["pelvis"]], (kp[B["left_hip"]] + kp[B["right_hip"]]) / 2)
-    assert jc[J["thorax"]] == min(conf[B["left_shoulder"]], conf[B["right_shoulder"]])
-    assert jc[J["pelvis"]] == min(conf[B["left_hip"]], conf[B["right_hip"]])
+    shoulders = (kp[B["left_shoulder"]] + kp[B["right_shoulder"]]) / 2
+    hips = (kp[B["left_hip"]] + kp[B["right_hip"]]) / 2
+    np.testing.assert_allclose(joints[J["thorax"]], shoulders - THORAX_FRACTION * (shoulders - hips))
+    np.testing.assert_allclose(joints[J["pelvis"]], hips + PELVIS_FRACTION * (shoulders - hips))
+    assert 0 < THORAX_FRACTION < PELVIS_FRACTION < 0.5  # each stays on its own half of the trunk
+    trunk = min(conf[B[f"{s}_{p}"]] for s in ("left", "right") for p in ("shoulder", "hip"))
+    assert jc[J["thorax"]] == trunk and jc[J["pelvis"]] == trunk
 
 
 def test_head_top_above_the_ears_with_lower_confidence():
@@ -77,7 +82,7 @@ def test_absent_landmarks_make_their_joints_absent(landmarks):
     kp[B["left_hip"]] = np.nan
     conf[B["left_hip"]] = 0.0
     joints, jc = to_joints15(kp, conf)
-    bad = {J["l_hip"], J["pelvis"]}
+    bad = {J["l_hip"], J["pelvis"], J["thorax"]}  # both trunk joints use the hips
     for j in range(15):
         assert np.isnan(joints[j]).all() == (j in bad), JOINTS15[j]
         assert (jc[j] == 0) == (j in bad), JOINTS15[j]
