@@ -7,13 +7,14 @@ of and their weights (which sum to 1), and :data:`CONFIDENCE_SCALE` the factor o
   ``left_*`` is the *person's* left (not the left of the image), as is swarmpose's ``l_*``.
 * ``thorax`` and ``pelvis`` are the body model's (HumanEva's) joints: the base of the neck and the pelvis
   (the skeleton's root), which are not MediaPipe's shoulder and hip midpoints. On the synthetic clips,
-  whose ground truth has both (``scripts/track_without_truth.py`` imports them with the detector), the
+  whose ground truth has both (``scripts/track_without_truth.py --clips cmu_16_16_walk cmu_16_18_turn
+  cmu_49_17_dance cmu_135_04_kick --import-only`` imports them with the detector and fits these), the
   joints triangulated from the keypoints put the truth's pelvis at ``hip_mid + p * (shoulder_mid -
   hip_mid)`` with ``p`` = 0.31, 0.31, 0.29, 0.24 (walk and turn of subject 16, dance of 49, kick of 135;
   least squares over the frames) and its thorax at ``shoulder_mid - t * (shoulder_mid - hip_mid)`` with
   ``t`` = 0.15, 0.15, 0.20, 0.21. :data:`PELVIS_FRACTION` and :data:`THORAX_FRACTION` are their means:
-  the triangulated pelvis moves from 117-139 mm off the truth to 19-59 mm, the thorax from 68-89 mm to
-  18-29 mm. A linear combination of landmarks stays consistent across views (it triangulates to the same
+  the triangulated pelvis moves from 117-139 mm off the truth to 21-57 mm, the thorax from 68-89 mm to
+  17-24 mm. A linear combination of landmarks stays consistent across views (it triangulates to the same
   combination of the 3D landmarks).
 * ``head_top`` is no landmark. It is extrapolated along the neck, above the ears:
   ``head_top = ear_mid + HEAD_TOP_FRACTION * (ear_mid - shoulder_mid)``, i.e. the weights

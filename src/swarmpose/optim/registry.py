@@ -558,8 +558,10 @@ def _refined(model: Any, fps: float) -> RefinedConfig:
                          **_thesis_base(model, fps))
 
 
-#: Weight of the keypoint term in ``refined-keypoints``: on the shared recording (cam04 held out, 20 fps) the
-#: held-out joint error was 11.8 / 9.1 / 8.8 / 8.6 / 8.7 px (median, half resolution) at 0 / 0.5 / 1 / 2 / 4.
+#: Weight of the keypoint term in ``refined-keypoints``, chosen on the shared recording (cam04 held out, 20 fps,
+#: ``track --fitness-options keypoints=W`` with ``refined``, the shoulder and hip midpoints as thorax and pelvis):
+#: the held-out median joint error was 11.8 / 9.1 / 8.8 / 8.6 / 8.7 / 8.3 / 8.3 px (half resolution) at
+#: W = 0 / 0.5 / 1 / 2 / 4 / 10 / 30; the gain levels off from 2.
 KEYPOINT_WEIGHT = 2.0
 
 
