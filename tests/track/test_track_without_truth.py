@@ -110,3 +110,11 @@ def test_refined_keypoints_fits_the_keypoints(bare_sequence: Path, short_sequenc
         truth = np.asarray(seq.gt_joints)[seq.subsample(20)[:3]]
     err = np.linalg.norm(result.joints - truth, axis=-1).mean(axis=1)
     assert (err < 35.0).all(), err
+
+
+def test_one_tracked_camera_cannot_triangulate_a_start(bare_sequence: Path):
+    from swarmpose.errors import DataError
+    from swarmpose.track.tracker import TrackConfig, prepare_track
+
+    with pytest.raises(DataError, match=r"seen by two of the tracked cameras \(BW1\); track with more cameras"):
+        prepare_track(bare_sequence, TrackConfig(algo="sppso", views="BW1"))

@@ -14,10 +14,12 @@ from typing import Any
 
 import numpy as np
 
+from swarmpose.errors import ConfigError, DataError
 from swarmpose.joints import JOINTS15
 from swarmpose.triangulation import residuals, triangulate
 
-__all__ = ["keypoint_joints", "keypoint_ik", "has_keypoints", "fill_gaps", "MIN_CONFIDENCE"]
+__all__ = ["keypoint_joints", "keypoint_ik", "keypoint_start", "tracked_views", "has_keypoints", "fill_gaps",
+           "MIN_CONFIDENCE"]
 
 #: Keypoints below this confidence are not used (MediaPipe's visibility of a hidden joint).
 MIN_CONFIDENCE = 0.3
@@ -86,3 +88,35 @@ def keypoint_ik(model: Any, joints: np.ndarray, x0: np.ndarray, constraint: Any 
     if constraint is not None and not bool(np.asarray(constraint(x[None])).ravel()[0]):
         return None
     return x
+
+
+def tracked_views(seq: Any, views: str) -> list[int]:
+    """Indices of the cameras ``views`` names (``"cam01,cam03"``; ``""``: all), in the sequence's order."""
+    names = list(seq.view_names)
+    if not views:
+        return list(range(len(names)))
+    wanted = [v.strip() for v in str(views).split(",") if v.strip()]
+    unknown = [v for v in wanted if v not in names]
+    if unknown:
+        raise ConfigError(f"--views: no camera {', '.join(map(repr, unknown))} in the sequence (its cameras: "
+                          f"{', '.join(names)})")
+    if len(set(wanted)) < 1:
+        raise ConfigError("--views names no camera")
+    return [i for i, n in enumerate(names) if n in wanted]
+
+
+def keypoint_start(model: Any, joints: np.ndarray, sequence_path: Any, first: int):
+    """Start pose from the joints triangulated from the keypoints: the IK fit of frame 0's joints (a joint
+    missing there is taken from the nearest frame that has it); no IK floor without ground truth."""
+    from swarmpose.body.ik import fit_ik
+
+    start = fill_gaps(joints, 0)
+    if not np.isfinite(start).all():
+        missing = [JOINTS15[j] for j in np.flatnonzero(~np.isfinite(start).all(axis=1))]
+        raise DataError(f"{sequence_path}: too few views see {', '.join(missing)} around frame {first} to "
+                        "triangulate the start pose; import from a later frame (`swarmpose import --start`) or track with more cameras")
+    ik = fit_ik(model, start[None])
+    T = len(joints)
+    params = np.full((T, model.n_params), np.nan)
+    params[0] = ik.params[0]
+    return params, np.full((T, 15), np.nan), params.copy()

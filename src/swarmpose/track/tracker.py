@@ -43,11 +43,11 @@ from swarmpose.body.priors import HardPriors
 from swarmpose.body.spec import Subject, load_spec
 from swarmpose.errors import ConfigError, DataError, FormatError
 from swarmpose.io.files import load_npz, read_json_object
-from swarmpose.joints import JOINTS15
 from swarmpose.metrics import track_errors, valid_frames
 from swarmpose.track.motion import parse_motion
 from swarmpose.track.progress import RunProgress
 from swarmpose.track.recovery import LIMBS, Recovery
+from swarmpose.track.start import keypoint_start, tracked_views
 from swarmpose.track.timing import PartTimer, TimedFitness
 
 LIMB_NAMES = tuple(LIMBS)
@@ -437,6 +437,9 @@ def prepare_track(sequence_path: str | Path, config: TrackConfig, out_dir: Path 
                                 "from; import the recording with the detector (`swarmpose import`, without "
                                 "--no-detect)")
             kp_joints = keypoint_joints(seq, frames, views=view_idx)
+            if not np.isfinite(kp_joints).all(axis=(1, 2)).any():
+                raise DataError(f"{sequence_path}: no tracked frame has every joint seen by two of the tracked cameras "
+                                f"({', '.join(seq.view_names[i] for i in view_idx)}); track with more cameras (--views)")
         times = np.asarray(seq.frame_times)[frames]
         key = _ik_cache_key(sequence_path, config)
         cached = _read_ik_cache(out_dir, key, frames, len(spec.parameters))
@@ -455,7 +458,7 @@ def prepare_track(sequence_path: str | Path, config: TrackConfig, out_dir: Path 
         if cached is not None:
             ik_params, ik_err = cached
         elif not has_gt:
-            ik_params, ik_err, floor_params = _keypoint_start(model, kp_joints, sequence_path, int(frames[0]))
+            ik_params, ik_err, floor_params = keypoint_start(model, kp_joints, sequence_path, int(frames[0]))
             if out_dir is not None:
                 out_dir.mkdir(parents=True, exist_ok=True)
                 subject.save(out_dir / "subject.json")
@@ -482,38 +485,6 @@ def prepare_track(sequence_path: str | Path, config: TrackConfig, out_dir: Path 
                           evals_per_frame=int(algo.evals_per_frame))
     finally:
         seq.close()
-
-
-def tracked_views(seq: Any, views: str) -> list[int]:
-    """Indices of the cameras ``views`` names (``"cam01,cam03"``; ``""``: all), in the sequence's order."""
-    names = list(seq.view_names)
-    if not views:
-        return list(range(len(names)))
-    wanted = [v.strip() for v in str(views).split(",") if v.strip()]
-    unknown = [v for v in wanted if v not in names]
-    if unknown:
-        raise ConfigError(f"--views: no camera {', '.join(map(repr, unknown))} in the sequence (its cameras: "
-                          f"{', '.join(names)})")
-    if len(set(wanted)) < 1:
-        raise ConfigError("--views names no camera")
-    return [i for i, n in enumerate(names) if n in wanted]
-
-
-def _keypoint_start(model: BodyModel, joints: np.ndarray, sequence_path: Any, first: int):
-    """Start pose from the joints triangulated from the keypoints: the IK fit of frame 0's joints (a joint
-    missing there is taken from the nearest frame that has it); no IK floor without ground truth."""
-    from swarmpose.track.start import fill_gaps
-
-    start = fill_gaps(joints, 0)
-    if not np.isfinite(start).all():
-        missing = [JOINTS15[j] for j in np.flatnonzero(~np.isfinite(start).all(axis=1))]
-        raise DataError(f"{sequence_path}: too few views see {', '.join(missing)} around frame {first} to "
-                        "triangulate the start pose; start later (--start) or import with more cameras")
-    ik = fit_ik(model, start[None])
-    T = len(joints)
-    params = np.full((T, model.n_params), np.nan)
-    params[0] = ik.params[0]
-    return params, np.full((T, 15), np.nan), params.copy()
 
 
 #: The error measures of a run's summary (:class:`swarmpose.metrics.TrackErrors`), null without ground truth.
