@@ -53,7 +53,8 @@ def floor(seq_path: str, frames: list[int], rounds: int, options: dict, seed: in
     from swarmpose.body.priors import HardPriors
     from swarmpose.features import parse_feature_options
     from swarmpose.io.sequence import open_sequence
-    from swarmpose.track.tracker import TrackConfig, _frame_observation, _make_fitness, prepare_track
+    from swarmpose.track.observation import frame_observation
+    from swarmpose.track.tracker import TrackConfig, _make_fitness, prepare_track
 
     setup = prepare_track(seq_path, TrackConfig(algo="sppso", fps=60.0), None)
     model, fit = setup.model, _make_fitness(setup)
@@ -72,7 +73,7 @@ def floor(seq_path: str, frames: list[int], rounds: int, options: dict, seed: in
     rows = []
     try:
         for i in frames:
-            fit.bind(_frame_observation(seq, int(setup.frame_indices[i]), "silhouette_edge", 1, backgrounds,
+            fit.bind(frame_observation(seq, int(setup.frame_indices[i]), "silhouette_edge", 1, backgrounds,
                                         feature_options))
             xt, gt = setup.ik_params[i], setup.gt_joints[i]
             ft = float(fit.evaluate(xt[None], options)[0])

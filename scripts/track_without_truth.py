@@ -9,8 +9,9 @@ the withheld joints. Beside it: ``refined`` on the original sequence, started fr
 and the subject's limb lengths against the skeleton's (from stature alone, then from the keypoints).
 
 Run:  .venv/bin/python scripts/track_without_truth.py [--clips CLIP ...] [--fps 20] [--max-frames N] [--import-only]
-      [--json]
-(--import-only: import and fit where the truth's pelvis and thorax lie along the keypoints' trunk, no tracking.)
+      [--no-keypoints] [--json]
+(--import-only: import and fit where the truth's pelvis and thorax lie along the keypoints' trunk, no tracking;
+--no-keypoints: import without the detector and track with ``refined --height H`` from the silhouettes alone.)
 """
 
 from __future__ import annotations
@@ -85,12 +86,13 @@ def trunk_fit(imported: Path, truth_all: np.ndarray) -> dict:
     return out
 
 
-def one_clip(clip: Path, work: Path, fps: float, max_frames: int | None, import_only: bool = False) -> dict:
+def one_clip(clip: Path, work: Path, fps: float, max_frames: int | None, import_only: bool = False,
+             keypoints: bool = True) -> dict:
     seq_path = cached_sequence(clip, progress=False)
     spec = load_spec("balan31")
     truth_subject = subject_from_clip(spec, load_clip(clip))
     height = stature(truth_subject)
-    rec, imported = work / f"{clip.stem}-recording", work / f"{clip.stem}-imported"
+    rec, imported = work / f"{clip.stem}-recording", work / f"{clip.stem}-imported{'' if keypoints else '-bare'}"
     for p in (rec, imported):
         shutil.rmtree(p, ignore_errors=True)
     with open_sequence(seq_path) as seq:
@@ -105,21 +107,21 @@ def one_clip(clip: Path, work: Path, fps: float, max_frames: int | None, import_
         names = [c.name for c in seq.cameras]
         rate = seq.frame_rate
     run([*CLI, "import", *[str(rec / n) for n in names], "-c", str(rec / "calibration.toml"), "-o", str(imported),
-         "--silhouettes", "background", *sum((["--background", str(rec / "backgrounds" / f"{n}.png")] for n in names),
+         *([] if keypoints else ["--no-detect"]), "--silhouettes", "background", *sum((["--background", str(rec / "backgrounds" / f"{n}.png")] for n in names),
                                             []), "--fps", f"{rate:g}", "--no-page", "--json"])
-    trunk = trunk_fit(imported, truth_all)
+    trunk = trunk_fit(imported, truth_all) if keypoints else None
     if import_only:
         return {"clip": clip.stem, "height_mm": height, "trunk": trunk}
     extra = [] if max_frames is None else ["--max-frames", str(max_frames)]
-    no_truth = work / f"{clip.stem}-refined-keypoints"
+    no_truth = work / f"{clip.stem}-{'refined-keypoints' if keypoints else 'refined-silhouettes'}"
     plain = work / f"{clip.stem}-refined-ik"
     for p in (no_truth, plain):
         shutil.rmtree(p, ignore_errors=True)
-    run([*CLI, "track", str(imported), "--algo", "refined-keypoints", "--height", f"{height:.0f}", "--fps", f"{fps:g}",
-         "--out", str(no_truth), "--json", *extra])
+    run([*CLI, "track", str(imported), "--algo", "refined-keypoints" if keypoints else "refined", "--height",
+         f"{height:.0f}", "--fps", f"{fps:g}", "--out", str(no_truth), "--json", *extra])
     run([*CLI, "track", str(seq_path), "--algo", "refined", "--fps", f"{fps:g}", "--out", str(plain), "--json",
          *extra])
-    kp_subject = Subject.load(no_truth / "subject.json")
+    kp_subject = Subject.load(no_truth / "subject.json")  # from the stature alone without keypoints
     true_len, kp_len = limb_lengths(truth_subject), limb_lengths(kp_subject)
     h_len = limb_lengths(subject_from_height(spec, height))
     return {"clip": clip.stem, "height_mm": height, "frames": int(len(truth)), "trunk": trunk,
@@ -134,17 +136,20 @@ def main() -> None:
     ap.add_argument("--max-frames", type=int, default=None)
     ap.add_argument("--work", type=Path, default=Path("results/without-truth"))
     ap.add_argument("--import-only", action="store_true", help="import and fit the trunk joints, no tracking")
+    ap.add_argument("--no-keypoints", action="store_true",
+                    help="no detector: start from the silhouettes and track with refined --height H")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
     args.work.mkdir(parents=True, exist_ok=True)
-    rows = [one_clip(MOCAP / f"{c}.bvh", args.work, args.fps, args.max_frames, args.import_only) for c in args.clips]
+    rows = [one_clip(MOCAP / f"{c}.bvh", args.work, args.fps, args.max_frames, args.import_only,
+                     not args.no_keypoints) for c in args.clips]
     if args.json:
         print(json.dumps({"clips": rows}))
         return
     print("| clip | pelvis fraction | pelvis mm: midpoint / fitted / shipped | thorax fraction | "
           "thorax mm: midpoint / fitted / shipped |")
     print("|---|---:|---|---:|---|")
-    for r in rows:
+    for r in filter(lambda r: r["trunk"], rows):
         p, t = r["trunk"]["pelvis"], r["trunk"]["thorax"]
         print(f"| {r['clip']} | {p['fraction']:.2f} | {p['midpoint_mm']:.0f} / {p['fitted_mm']:.0f} / {p['shipped_mm']:.0f} "
               f"| {t['fraction']:.2f} | {t['midpoint_mm']:.0f} / {t['fitted_mm']:.0f} / {t['shipped_mm']:.0f} |")

@@ -92,8 +92,8 @@ def test_without_truth_or_keypoints_the_error_says_what_to_do(short_sequence: Pa
         bare = MultiViewSequence(cameras=seq.cameras, frame_rate=seq.frame_rate, n_frames=seq.n_frames,
                                  reader=seq._reader, backgrounds=seq.backgrounds())
         write_sequence(tmp_path / "bare", bare)
-    with pytest.raises(DataError, match="no ground truth and no body keypoints"):
-        prepare_track(tmp_path / "bare", TrackConfig(algo="sppso", height_mm=1750))
+    with pytest.raises(DataError, match=r"no ground truth and no body keypoints: pass --height MM"):
+        prepare_track(tmp_path / "bare", TrackConfig(algo="sppso"))
     with pytest.raises(Exception, match="no camera 'cam9'"):
         prepare_track(short_sequence, TrackConfig(algo="sppso", views="BW1,cam9"))
 
@@ -118,3 +118,26 @@ def test_one_tracked_camera_cannot_triangulate_a_start(bare_sequence: Path):
 
     with pytest.raises(DataError, match=r"seen by two of the tracked cameras \(BW1\); track with more cameras"):
         prepare_track(bare_sequence, TrackConfig(algo="sppso", views="BW1"))
+
+
+def test_without_keypoints_a_stature_starts_from_the_silhouettes(short_sequence: Path, tmp_path: Path):
+    """No ground truth, no keypoints, --height: the silhouettes' centre places the root, frame 0 searches every
+    heading, and the track lands near the withheld truth."""
+    from swarmpose.track.start import START_HEADINGS, START_ROUNDS, START_SEARCHES
+    from swarmpose.track.tracker import TrackConfig, prepare_track, run_tracker
+
+    with open_sequence(short_sequence) as seq:
+        bare = MultiViewSequence(cameras=seq.cameras, frame_rate=seq.frame_rate, n_frames=seq.n_frames,
+                                 reader=seq._reader, backgrounds=seq.backgrounds())
+        write_sequence(tmp_path / "bare", bare)
+        truth = np.asarray(seq.gt_joints)[seq.subsample(20)[:2]]
+    setup = prepare_track(tmp_path / "bare", TrackConfig(algo="sppso", max_frames=2, height_mm=1517))
+    assert setup.search_start and not setup.has_ground_truth
+    start_pelvis = setup.model.joints15(setup.ik_params[:1])[0, 1]
+    assert np.linalg.norm(start_pelvis[:2] - truth[0, 1, :2]) < 150  # the centre, on the floor plane
+    result = run_tracker(setup, 0)
+    budget = setup.evals_per_frame
+    assert result.evaluations[0] == START_HEADINGS + (START_SEARCHES + START_ROUNDS) * budget
+    assert result.evaluations[1] == budget
+    err = np.linalg.norm(result.joints - truth, axis=-1).mean(axis=1)
+    assert (err < 150).all(), err

@@ -19,6 +19,8 @@ from swarmpose.joints import JOINTS15
 from swarmpose.triangulation import residuals, triangulate
 
 __all__ = ["keypoint_joints", "keypoint_ik", "keypoint_start", "tracked_views", "has_keypoints", "fill_gaps",
+           "silhouette_centre", "silhouette_start", "heading_candidates", "START_HEADINGS", "START_SEARCHES",
+           "START_ROUNDS",
            "MIN_CONFIDENCE"]
 
 #: Keypoints below this confidence are not used (MediaPipe's visibility of a hidden joint).
@@ -120,3 +122,49 @@ def keypoint_start(model: Any, joints: np.ndarray, sequence_path: Any, first: in
     params = np.full((T, model.n_params), np.nan)
     params[0] = ik.params[0]
     return params, np.full((T, 15), np.nan), params.copy()
+
+
+#: Headings tried at frame 0 of a track that starts from the silhouettes, and how many of the best are searched.
+START_HEADINGS = 12
+START_SEARCHES = 3
+#: Further searches of frame 0, each from the best pose so far, after the headings' searches.
+START_ROUNDS = 4
+
+
+def silhouette_centre(seq: Any, k: int, views: list[int]) -> np.ndarray | None:
+    """The person's centre (mm): the tracked views' silhouette centroids triangulated (a coarse visual hull's
+    centre), or None when fewer than two views see anyone. Silhouettes are the stored ones, else background
+    subtraction against the sequence's backgrounds."""
+    stored = seq.silhouettes(int(k))
+    if stored is None:
+        from swarmpose.features import silhouette
+
+        images, bgs = seq.images(int(k)), seq.backgrounds()
+        if images is None or bgs is None:
+            return None
+        stored = np.stack([silhouette(images[c], bgs[c]) for c in range(seq.n_views)])
+    uv = np.full((1, len(views), 1, 2), np.nan)
+    for i, c in enumerate(views):
+        ys, xs = np.nonzero(stored[c])
+        if xs.size >= 50:
+            uv[0, i, 0] = (xs.mean(), ys.mean())
+    centre = triangulate([seq.cameras[c] for c in views], uv)[0, 0]
+    return centre if np.isfinite(centre).all() else None
+
+
+def silhouette_start(model: Any, centre: np.ndarray) -> np.ndarray:
+    """A standing pose ``(D,)`` (joint angles zero) whose pelvis is at ``centre``, heading 0."""
+    from swarmpose.joints import JOINT_INDEX
+
+    x = model.zero_pose().astype(np.float64)
+    pelvis = model.joints15(x[None])[0][JOINT_INDEX["pelvis"]]
+    for a, name in enumerate(("pelvis_tx", "pelvis_ty", "pelvis_tz")):
+        x[model.param_index(name)] += centre[a] - pelvis[a]
+    return np.clip(x, model.lower, model.upper)
+
+
+def heading_candidates(model: Any, x: np.ndarray, n: int = START_HEADINGS) -> np.ndarray:
+    """``(n, D)``: ``x`` turned to ``n`` headings about the vertical (the root's ``pelvis_rz``)."""
+    out = np.repeat(np.asarray(x, dtype=np.float64)[None], n, axis=0)
+    out[:, model.param_index("pelvis_rz")] = np.linspace(-np.pi, np.pi, n, endpoint=False)
+    return np.clip(out, model.lower, model.upper)

@@ -45,6 +45,7 @@ from swarmpose.errors import ConfigError, DataError, FormatError
 from swarmpose.io.files import load_npz, read_json_object
 from swarmpose.metrics import track_errors, valid_frames
 from swarmpose.track.motion import parse_motion
+from swarmpose.track.observation import IMAGE_FITNESS, MARKER_FITNESS, frame_observation
 from swarmpose.track.progress import RunProgress
 from swarmpose.track.recovery import LIMBS, Recovery
 from swarmpose.track.start import keypoint_start, tracked_views
@@ -55,8 +56,6 @@ LIMB_NAMES = tuple(LIMBS)
 __all__ = ["TrackConfig", "RunResult", "prepare_track", "run_tracker", "TrackSetup", "versions", "model_identity",
            "sequence_identity", "sequence_location", "ground_truth_identity", "observation_identity"]
 
-IMAGE_FITNESS = ("silhouette_edge", "deutscher_reid")
-MARKER_FITNESS = ("markers", "reprojection")
 
 
 @dataclass(frozen=True)
@@ -219,6 +218,7 @@ class TrackSetup:
     ik_error_mm: np.ndarray
     world_from_source: np.ndarray
     evals_per_frame: int
+    search_start: bool = False  # frame 0 searched over headings (a start from the silhouettes alone)
 
     @property
     def valid(self) -> np.ndarray:
@@ -431,11 +431,19 @@ def prepare_track(sequence_path: str | Path, config: TrackConfig, out_dir: Path 
         has_gt = seq.gt_joints is not None
         gt = np.asarray(seq.gt_joints)[frames] if has_gt else np.full((len(frames), 15, 3), np.nan)
         kp_joints = None
-        if not has_gt:
-            if not has_keypoints(seq):
-                raise DataError(f"{sequence_path}: the sequence has no ground truth and no body keypoints to start "
-                                "from; import the recording with the detector (`swarmpose import`, without "
-                                "--no-detect)")
+        centre = None  # without ground truth and keypoints: the silhouettes' centre
+        if not has_gt and not has_keypoints(seq):
+            if not (config.height_mm or config.subject):
+                raise DataError(f"{sequence_path}: the sequence has no ground truth and no body keypoints: pass "
+                                "--height MM (or --subject FILE) to start from the silhouettes, or import the "
+                                "recording with the detector (`swarmpose import`, without --no-detect)")
+            from swarmpose.track.start import silhouette_centre
+
+            centre = silhouette_centre(seq, int(frames[0]), view_idx)
+            if centre is None:
+                raise DataError(f"{sequence_path}: frame {int(frames[0])}: fewer than two tracked cameras see a "
+                                "silhouette to start from")
+        elif not has_gt:
             kp_joints = keypoint_joints(seq, frames, views=view_idx)
             if not np.isfinite(kp_joints).all(axis=(1, 2)).any():
                 raise DataError(f"{sequence_path}: no tracked frame has every joint seen by two of the tracked cameras "
@@ -458,7 +466,14 @@ def prepare_track(sequence_path: str | Path, config: TrackConfig, out_dir: Path 
         if cached is not None:
             ik_params, ik_err = cached
         elif not has_gt:
-            ik_params, ik_err, floor_params = keypoint_start(model, kp_joints, sequence_path, int(frames[0]))
+            if centre is not None:
+                from swarmpose.track.start import silhouette_start
+
+                ik_params = np.full((len(frames), model.n_params), np.nan)
+                ik_params[0] = silhouette_start(model, centre)
+                ik_err, floor_params = np.full((len(frames), 15), np.nan), ik_params.copy()
+            else:
+                ik_params, ik_err, floor_params = keypoint_start(model, kp_joints, sequence_path, int(frames[0]))
             if out_dir is not None:
                 out_dir.mkdir(parents=True, exist_ok=True)
                 subject.save(out_dir / "subject.json")
@@ -482,7 +497,8 @@ def prepare_track(sequence_path: str | Path, config: TrackConfig, out_dir: Path 
         return TrackSetup(sequence_path=Path(sequence_path), config=config, model=model, frame_indices=frames,
                           frame_times=times, gt_joints=gt, ik_params=ik_params, ik_error_mm=ik_err,
                           world_from_source=np.asarray(seq.world_from_source, dtype=np.float64),
-                          evals_per_frame=int(algo.evals_per_frame))
+                          evals_per_frame=int(algo.evals_per_frame),
+                          search_start=not has_gt and not has_keypoints(seq))
     finally:
         seq.close()
 
@@ -524,41 +540,6 @@ def _make_fitness(setup: TrackSetup):
     from swarmpose.fitness import make_fitness
 
     return make_fitness(setup.config.fitness_kind, setup.model, backend=setup.config.backend)
-
-
-def _frame_observation(seq: Any, k: int, kind: str, downsample: int, backgrounds: Any,
-                       feature_options: tuple[dict, dict] = ({}, {}), views: list[int] | None = None,
-                       keypoints: tuple[np.ndarray, np.ndarray] | None = None):
-    """One frame's observation; ``feature_options`` = :func:`swarmpose.features.parse_feature_options`'s pair;
-    ``views``: the cameras tracked with (default all); ``keypoints``: the whole sequence's labelled keypoints
-    ``(T, C, 15, 2)`` and confidences ``(T, C, 15)`` when it has them (carried for the keypoint term)."""
-    v = list(range(seq.n_views)) if views is None else list(views)
-    cams = [seq.cameras[c] for c in v]
-    if kind in MARKER_FITNESS:
-        from swarmpose.fitness import MarkerFrame
-
-        markers = seq.markers(k)
-        if markers is None:
-            raise DataError(f"{getattr(seq, 'path', seq)}: frame {k} has no 2D marker detections (needed by the "
-                            f"{kind} fitness)")
-        return MarkerFrame([markers[c] for c in v], cams)
-    from swarmpose.features import compute_features
-
-    images = seq.images(k)
-    if images is None:
-        raise DataError(f"{getattr(seq, 'path', seq)}: frame {k} has no images (needed by the {kind} fitness)")
-    sil_opts, edge_opts = feature_options
-    stored = seq.silhouettes(k)  # a learned segmentation imported with a recording, used as it is
-    if stored is None and backgrounds is None:
-        raise DataError(f"{getattr(seq, 'path', seq)}: has neither silhouettes nor background images (needed by the "
-                        f"{kind} fitness); import the recording with --silhouettes learned or median")
-    if len(v) != seq.n_views:
-        images = images[v]
-        stored = None if stored is None else stored[v]
-        backgrounds = None if backgrounds is None else np.asarray(backgrounds)[v]
-    kp = None if keypoints is None else (keypoints[0][k][v], keypoints[1][k][v])
-    return compute_features(images, backgrounds, cams, downsample=downsample, silhouette_options=sil_opts,
-                            edge_options=edge_opts, silhouettes=stored, keypoints=kp)
 
 
 def run_tracker(
@@ -645,7 +626,7 @@ def run_tracker(
             t0 = time.perf_counter()
             k = int(setup.frame_indices[i])
             with timer.part("features"):
-                observation = _frame_observation(seq, k, cfg.fitness_kind, cfg.downsample, backgrounds,
+                observation = frame_observation(seq, k, cfg.fitness_kind, cfg.downsample, backgrounds,
                                                  feature_options, views, keypoints)
             fitness.bind(observation if observe is None else observe(k, observation))
             if i == start_k:  # compile the fitness kernels (numba: seconds on a fresh install) off the clock,
@@ -658,15 +639,37 @@ def run_tracker(
                 if carry is not None and np.any(step):
                     carry = optim.ParticleSet(motion.move_particles(carry.particles, step, constraint),
                                               carry.weights)
-            with timer.part("optimiser"):
-                opt = algo.start(x_pred, rng, constraint=constraint, carry=carry)
-                while not opt.done:
-                    poses = opt.ask()
-                    options = {**opt.fitness_options, **extra_options} if extra_options else opt.fitness_options
-                    opt.tell(fitness.evaluate(poses, options))
+            from swarmpose.track.start import START_ROUNDS
+
+            starts = [x_pred]
+            extra_evals = 0
+            if i == 0 and setup.search_start:  # the heading is unknown: the best few of a turn, each searched
+                from swarmpose.track.start import START_SEARCHES, heading_candidates
+
+                turn = heading_candidates(model, x_pred)
+                first = fitness.evaluate(turn, extra_options or None)
+                extra_evals = len(turn)
+                starts = [turn[j] for j in np.argsort(-np.nan_to_num(first, nan=-np.inf))[:START_SEARCHES]]
+            best_opt = None
+            rounds = START_ROUNDS if i == 0 and setup.search_start else 0
+            while starts:
+                x_start = starts.pop(0)
+                with timer.part("optimiser"):
+                    opt = algo.start(x_start, rng, constraint=constraint, carry=carry)
+                    while not opt.done:
+                        poses = opt.ask()
+                        options = {**opt.fitness_options, **extra_options} if extra_options else opt.fitness_options
+                        opt.tell(fitness.evaluate(poses, options))
+                extra_evals += opt.evaluations
+                if best_opt is None or opt.best.score > best_opt.best.score:
+                    best_opt = opt
+                if not starts and rounds > 0:  # frame 0 from the silhouettes: search again from the best so far
+                    rounds -= 1
+                    starts.append(np.array(best_opt.best.x, dtype=np.float64))
+            opt = best_opt
             best = opt.best
             x_prev = np.array(best.x, dtype=np.float64)
-            n_evals = opt.evaluations
+            n_evals = extra_evals
             score = best.score
             carry = opt.carry() if hasattr(opt, "carry") else None
             if recovery is not None:
