@@ -35,7 +35,7 @@ import numpy as np
 from swarmpose.errors import ConfigError, DataError, FormatError, ShapeError
 from swarmpose.io.files import read_json_object
 
-__all__ = ["Camera", "fundamental_matrix", "save_rig", "load_rig", "RIG_FORMAT", "RIG_VERSION"]
+__all__ = ["Camera", "fundamental_matrix", "save_rig", "load_rig", "unique_cameras", "RIG_FORMAT", "RIG_VERSION"]
 
 RIG_FORMAT = "swarmpose-rig"
 RIG_VERSION = 1
@@ -583,6 +583,20 @@ def fundamental_matrix(cam_a: Camera, cam_b: Camera) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------- rig files
+def unique_cameras(cameras: Iterable[Any], who: str) -> list[Camera]:
+    """``cameras`` as a list, checked to be :class:`Camera` objects with unique names (``who`` names the caller
+    in the :class:`~swarmpose.errors.ConfigError`)."""
+    cams = list(cameras)
+    for c in cams:
+        if not isinstance(c, Camera):
+            raise ConfigError(f"{who} expects Camera objects, got {type(c).__name__}")
+    names = [c.name for c in cams]
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        raise ConfigError(f"{who}: camera names must be unique, repeated: {dup}")
+    return cams
+
+
 def save_rig(path: str | os.PathLike[str], cameras: Iterable[Camera]) -> None:
     """Write cameras to a JSON rig file.
 
@@ -597,14 +611,7 @@ def save_rig(path: str | os.PathLike[str], cameras: Iterable[Camera]) -> None:
     Layout: ``{"format": "swarmpose-rig", "version": 1, "cameras": [Camera.to_dict(), ...]}``.
     Floats are written with ``repr`` precision, so :func:`load_rig` returns equal cameras.
     """
-    cams = list(cameras)
-    for c in cams:
-        if not isinstance(c, Camera):
-            raise ConfigError(f"save_rig expects Camera objects, got {type(c).__name__}")
-    names = [c.name for c in cams]
-    dup = sorted({n for n in names if names.count(n) > 1})
-    if dup:
-        raise ConfigError(f"camera names must be unique within a rig, repeated: {dup}")
+    cams = unique_cameras(cameras, "save_rig")
     doc = {"format": RIG_FORMAT, "version": RIG_VERSION, "cameras": [c.to_dict() for c in cams]}
     Path(path).write_text(json.dumps(doc, indent=2, allow_nan=False) + "\n", encoding="utf-8")
 

@@ -6,7 +6,7 @@ See ``shared/reference/humaneva-facts.md`` §4.3. Every ``(..., 15, 3)`` joint a
 
 from __future__ import annotations
 
-__all__ = ["JOINTS15", "JOINT_INDEX", "LEFT_JOINTS", "RIGHT_JOINTS", "BONES15"]
+__all__ = ["JOINTS15", "JOINT_INDEX", "LEFT_JOINTS", "RIGHT_JOINTS", "BONES15", "SWAP15"]
 
 JOINTS15: tuple[str, ...] = (
     "thorax",          # 0  thorax / neck base (torsoProximal, headProximal)
@@ -29,6 +29,11 @@ JOINTS15: tuple[str, ...] = (
 JOINT_INDEX: dict[str, int] = {name: i for i, name in enumerate(JOINTS15)}
 LEFT_JOINTS = tuple(i for i, n in enumerate(JOINTS15) if n.startswith("l_"))
 RIGHT_JOINTS = tuple(i for i, n in enumerate(JOINTS15) if n.startswith("r_"))
+#: The permutation that exchanges left and right: ``joints[..., SWAP15, :]`` is the mirrored labelling
+#: (``l_elbow`` takes ``r_elbow``'s place and back; the middle joints stay). ``SWAP15[SWAP15]`` is the identity.
+SWAP15: tuple[int, ...] = tuple(
+    JOINT_INDEX[("r_" + n[2:]) if n.startswith("l_") else ("l_" + n[2:]) if n.startswith("r_") else n]
+    for n in JOINTS15)
 
 # Segments of the 15-joint stick figure (for plots and bone-length checks).
 BONES15: tuple[tuple[int, int], ...] = (

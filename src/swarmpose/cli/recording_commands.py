@@ -11,15 +11,15 @@ import typer
 from swarmpose.cli.app import app
 from swarmpose.cli.common import console, err_console, escape, fail_on_user_error, print_json
 
-_VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".m4v", ".webm", ".mpg", ".mpeg", ".wmv")
-
 
 def _expand_sources(paths: list[Path]) -> list[Path]:
     """A folder of videos stands for its videos; anything else (a video, an image folder) for itself."""
+    from swarmpose.io.video import VIDEO_SUFFIXES
+
     out: list[Path] = []
     for p in paths:
         if p.is_dir():
-            videos = sorted(q for q in p.iterdir() if q.is_file() and q.suffix.lower() in _VIDEO_SUFFIXES)
+            videos = sorted(q for q in p.iterdir() if q.is_file() and q.suffix.lower() in VIDEO_SUFFIXES)
             if videos:
                 out.extend(videos)
                 continue

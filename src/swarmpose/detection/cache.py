@@ -40,6 +40,7 @@ import numpy as np
 from swarmpose.detection.base import PersonDetector
 from swarmpose.errors import ConfigError, DataError, FormatError, ShapeError
 from swarmpose.io.files import load_npz
+from swarmpose.io.video import open_frames
 
 __all__ = ["VideoDetections", "detect_video_frames", "detect_video_file", "load_detections", "iter_video_frames",
            "video_identity", "CACHE_FORMAT"]
@@ -155,22 +156,12 @@ def video_identity(path: str | os.PathLike[str]) -> dict[str, Any]:
 
 
 def iter_video_frames(path: str | os.PathLike[str], n_frames: int | None = None) -> Iterator[np.ndarray]:
-    """The BGR frames of a video file, in order (the first ``n_frames`` when given)."""
-    if not Path(path).is_file():
-        raise DataError(f"video not found: {path}")
-    cap = cv2.VideoCapture(str(path))
-    try:
-        if not cap.isOpened():
-            raise DataError(f"OpenCV cannot open the video {path}")
-        t = 0
-        while n_frames is None or t < n_frames:
-            ok, frame = cap.read()
-            if not ok:
-                return
-            yield frame
-            t += 1
-    finally:
-        cap.release()
+    """The BGR frames of a video file (or image folder), in order (the first ``n_frames`` when given):
+    :func:`swarmpose.io.video.open_frames`'s, which names the file when it cannot be read."""
+    src = open_frames(path)
+    n = src.n_frames if n_frames is None else min(int(n_frames), src.n_frames)
+    for _, frame in src.frames(range(n)):
+        yield frame
 
 
 def _run_meta(detector: PersonDetector, n_frames: int, video: Mapping[str, Any] | str | os.PathLike[str] | None
@@ -277,8 +268,6 @@ def detect_video_file(video_path: str | os.PathLike[str], detector: PersonDetect
     """:func:`detect_video_frames` on a video file (``n_frames``: OpenCV's frame count when None)."""
     identity = video_identity(video_path)
     if n_frames is None:
-        cap = cv2.VideoCapture(str(video_path))
-        n_frames = int(cap.get(cv2.CAP_PROP_FRAME_COUNT))
-        cap.release()
+        n_frames = open_frames(video_path).n_frames
     return detect_video_frames(iter_video_frames(video_path, n_frames), detector, cache_path, n_frames=n_frames,
                                video=identity, save_every=save_every, progress=progress)

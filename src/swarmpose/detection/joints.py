@@ -45,9 +45,10 @@ import numpy as np
 
 from swarmpose.errors import ShapeError
 from swarmpose.joints import JOINTS15
+from swarmpose.joints import SWAP15 as SWAP15_TUPLE
 
 __all__ = ["BLAZEPOSE33", "BLAZEPOSE_INDEX", "HEAD_TOP_FRACTION", "PELVIS_FRACTION", "THORAX_FRACTION",
-           "JOINT_SOURCES", "CONFIDENCE_SCALE", "SWAP15", "SWAP33", "to_joints15"]
+           "JOINT_SOURCES", "CONFIDENCE_SCALE", "MIN_CONFIDENCE", "SWAP15", "SWAP33", "to_joints15"]
 
 BLAZEPOSE33: tuple[str, ...] = (
     "nose",
@@ -98,6 +99,9 @@ JOINT_SOURCES: dict[str, tuple[tuple[str, float], ...]] = {
                  ("left_shoulder", -_F / 2), ("right_shoulder", -_F / 2)),
 }
 CONFIDENCE_SCALE: dict[str, float] = {"head_top": 0.5}  # 1 for the others
+#: Keypoints below this confidence are not used: MediaPipe's visibility of a hidden joint is low. The import's
+#: subject selection, the tracker's start, the keypoint term and the held-out scores all use it.
+MIN_CONFIDENCE = 0.3
 
 
 def _tables() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -134,7 +138,8 @@ def _swap(names: tuple[str, ...], left: str, right: str) -> np.ndarray:
     return perm
 
 
-SWAP15 = _swap(JOINTS15, "l_", "r_")
+SWAP15 = np.array(SWAP15_TUPLE)
+SWAP15.setflags(write=False)
 SWAP33 = _swap(BLAZEPOSE33, "left_", "right_")
 
 

@@ -23,17 +23,15 @@ from collections.abc import Sequence
 import numpy as np
 
 from swarmpose.camera import Camera
-from swarmpose.joints import JOINTS15, LEFT_JOINTS, RIGHT_JOINTS
+from swarmpose.detection.joints import MIN_CONFIDENCE
+from swarmpose.joints import JOINTS15, SWAP15
 
-__all__ = ["keypoint_cost", "keypoint_cost_reference", "SCALE", "MIN_CONFIDENCE", "SWAP"]
+__all__ = ["keypoint_cost", "keypoint_cost_reference", "SCALE", "SWAP"]
 
 #: Robust scale of the residual, as a fraction of the image diagonal (about 22 px at 544 x 960).
 SCALE = 0.02
-#: Keypoints below this confidence do not count.
-MIN_CONFIDENCE = 0.3
 #: The permutation of the 15 joints that exchanges left and right.
-SWAP = np.arange(len(JOINTS15))
-SWAP[list(LEFT_JOINTS)], SWAP[list(RIGHT_JOINTS)] = list(RIGHT_JOINTS), list(LEFT_JOINTS)
+SWAP = np.array(SWAP15)
 
 
 def _weights(confidence: np.ndarray, keypoints: np.ndarray) -> np.ndarray:

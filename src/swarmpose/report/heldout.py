@@ -23,7 +23,8 @@ from typing import Any
 
 import numpy as np
 
-from swarmpose.track.start import MIN_CONFIDENCE, has_keypoints, keypoint_joints
+from swarmpose.detection.joints import MIN_CONFIDENCE
+from swarmpose.track.start import has_keypoints, keypoint_joints
 
 __all__ = ["HeldOutScore", "heldout_scores", "heldout_plot"]
 
@@ -81,13 +82,13 @@ def heldout_scores(seq: Any, model: Any, params: np.ndarray, joints: np.ndarray,
         kp, conf = dense[frames], c[frames]
         base_joints = keypoint_joints(seq, frames, views=tracked_idx)
     out = []
+    bgs = seq.backgrounds()
     for c in held:
         cam = seq.cameras[c]
         model_px = baseline_px = iou = None
         if kp is not None:
             model_px = _median_error(cam.project(joints), kp[:, c], conf[:, c])
             baseline_px = _median_error(cam.project(base_joints), kp[:, c], conf[:, c])
-        bgs = seq.backgrounds()
         if silhouettes and ("silhouette" in seq.streams or (bgs is not None and "image" in seq.streams)):
             from swarmpose.features import silhouette
 

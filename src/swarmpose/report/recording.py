@@ -21,6 +21,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from swarmpose.detection.joints import MIN_CONFIDENCE
 from swarmpose.errors import DataError
 from swarmpose.io.sequence import open_sequence
 from swarmpose.joints import BONES15, JOINTS15
@@ -87,7 +88,7 @@ def _residual_plot(path: Path, names: list[str], residual: np.ndarray, confidenc
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    r = np.where(confidence >= 0.3, residual, np.nan)
+    r = np.where(confidence >= MIN_CONFIDENCE, residual, np.nan)
     T = r.shape[0]
     t = np.arange(T)
     fig, ax = plt.subplots(figsize=(9, 3.6), dpi=110)
@@ -161,13 +162,11 @@ def write_import_report(folder: str | Path, *, frames: int = 4) -> Path:
         lines += ["## Overlays", "",
                   "Stored silhouette tinted green; detected keypoints (the person's left blue, right orange); "
                   "the joints triangulated from all views projected back as white rings.", ""]
+        dense = None if seq.marker_data is None else seq.marker_data.to_dense()[0]
         for k in picks:
             images = seq.images(k)
             sil = seq.silhouettes(k)
-            kp = None
-            if seq.marker_data is not None:
-                dense, _ = seq.marker_data.to_dense()
-                kp = dense[k]
+            kp = None if dense is None else dense[k]
             # the sequence's cameras take the world joints straight to its own (scaled) pixels
             proj = None if arrays is None else reproject(seq.cameras, arrays["points"][k])
             pic = overlay_frame(images, sil, kp, proj)

@@ -14,17 +14,15 @@ from typing import Any
 
 import numpy as np
 
+from swarmpose.detection.joints import MIN_CONFIDENCE
 from swarmpose.errors import ConfigError, DataError
 from swarmpose.joints import JOINTS15
 from swarmpose.triangulation import residuals, triangulate
 
 __all__ = ["keypoint_joints", "keypoint_ik", "keypoint_start", "tracked_views", "has_keypoints", "fill_gaps",
            "silhouette_centre", "silhouette_start", "heading_candidates", "START_HEADINGS", "START_SEARCHES",
-           "START_ROUNDS",
-           "MIN_CONFIDENCE"]
+           "START_ROUNDS"]
 
-#: Keypoints below this confidence are not used (MediaPipe's visibility of a hidden joint).
-MIN_CONFIDENCE = 0.3
 
 
 def has_keypoints(seq: Any) -> bool:

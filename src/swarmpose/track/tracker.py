@@ -48,7 +48,19 @@ from swarmpose.track.motion import parse_motion
 from swarmpose.track.observation import IMAGE_FITNESS, MARKER_FITNESS, frame_observation
 from swarmpose.track.progress import RunProgress
 from swarmpose.track.recovery import LIMBS, Recovery
-from swarmpose.track.start import keypoint_start, tracked_views
+from swarmpose.track.start import (
+    START_ROUNDS,
+    START_SEARCHES,
+    fill_gaps,
+    has_keypoints,
+    heading_candidates,
+    keypoint_ik,
+    keypoint_joints,
+    keypoint_start,
+    silhouette_centre,
+    silhouette_start,
+    tracked_views,
+)
 from swarmpose.track.timing import PartTimer, TimedFitness
 
 LIMB_NAMES = tuple(LIMBS)
@@ -426,8 +438,6 @@ def prepare_track(sequence_path: str | Path, config: TrackConfig, out_dir: Path 
             hint = "" if is_dataset_spec(sequence_path) else " (synthesise it with `swarmpose synth --markers joints15`)"
             raise DataError(f"{sequence_path}: the sequence has no 2D marker detections, which the "
                             f"{config.fitness_kind} fitness needs{hint}")
-        from swarmpose.track.start import has_keypoints, keypoint_joints
-
         has_gt = seq.gt_joints is not None
         gt = np.asarray(seq.gt_joints)[frames] if has_gt else np.full((len(frames), 15, 3), np.nan)
         kp_joints = None
@@ -437,8 +447,6 @@ def prepare_track(sequence_path: str | Path, config: TrackConfig, out_dir: Path 
                 raise DataError(f"{sequence_path}: the sequence has no ground truth and no body keypoints: pass "
                                 "--height MM (or --subject FILE) to start from the silhouettes, or import the "
                                 "recording with the detector (`swarmpose import`, without --no-detect)")
-            from swarmpose.track.start import silhouette_centre
-
             centre = silhouette_centre(seq, int(frames[0]), view_idx)
             if centre is None:
                 raise DataError(f"{sequence_path}: frame {int(frames[0])}: fewer than two tracked cameras see a "
@@ -467,8 +475,6 @@ def prepare_track(sequence_path: str | Path, config: TrackConfig, out_dir: Path 
             ik_params, ik_err = cached
         elif not has_gt:
             if centre is not None:
-                from swarmpose.track.start import silhouette_start
-
                 ik_params = np.full((len(frames), model.n_params), np.nan)
                 ik_params[0] = silhouette_start(model, centre)
                 ik_err, floor_params = np.full((len(frames), 15), np.nan), ik_params.copy()
@@ -498,7 +504,7 @@ def prepare_track(sequence_path: str | Path, config: TrackConfig, out_dir: Path 
                           frame_times=times, gt_joints=gt, ik_params=ik_params, ik_error_mm=ik_err,
                           world_from_source=np.asarray(seq.world_from_source, dtype=np.float64),
                           evals_per_frame=int(algo.evals_per_frame),
-                          search_start=not has_gt and not has_keypoints(seq))
+                          search_start=centre is not None)
     finally:
         seq.close()
 
@@ -611,13 +617,9 @@ def run_tracker(
     seq = open_sequence(setup.sequence_path)
     views = tracked_views(seq, cfg.views)
     backgrounds = seq.backgrounds() if cfg.fitness_kind in IMAGE_FITNESS else None
-    from swarmpose.track.start import fill_gaps, has_keypoints, keypoint_ik
-
     keypoints = seq.marker_data.to_dense() if cfg.fitness_kind in IMAGE_FITNESS and has_keypoints(seq) else None
     kp_joints = None  # the tracked views' triangulated keypoints, for the configurations that fit them per frame
     if getattr(algo, "keypoint_ik", False) and has_keypoints(seq):
-        from swarmpose.track.start import keypoint_joints
-
         kp_joints = keypoint_joints(seq, setup.frame_indices, views=views)
     try:
         for i in range(start_k, T):
@@ -639,16 +641,12 @@ def run_tracker(
                 if carry is not None and np.any(step):
                     carry = optim.ParticleSet(motion.move_particles(carry.particles, step, constraint),
                                               carry.weights)
-            from swarmpose.track.start import START_ROUNDS
-
             starts = [x_pred]
-            extra_evals = 0
+            frame_evals = 0
             if i == 0 and setup.search_start:  # the heading is unknown: the best few of a turn, each searched
-                from swarmpose.track.start import START_SEARCHES, heading_candidates
-
                 turn = heading_candidates(model, x_pred)
                 first = fitness.evaluate(turn, extra_options or None)
-                extra_evals = len(turn)
+                frame_evals = len(turn)
                 starts = [turn[j] for j in np.argsort(-np.nan_to_num(first, nan=-np.inf))[:START_SEARCHES]]
             best_opt = None
             rounds = START_ROUNDS if i == 0 and setup.search_start else 0
@@ -660,7 +658,7 @@ def run_tracker(
                         poses = opt.ask()
                         options = {**opt.fitness_options, **extra_options} if extra_options else opt.fitness_options
                         opt.tell(fitness.evaluate(poses, options))
-                extra_evals += opt.evaluations
+                frame_evals += opt.evaluations
                 if best_opt is None or opt.best.score > best_opt.best.score:
                     best_opt = opt
                 if not starts and rounds > 0:  # frame 0 from the silhouettes: search again from the best so far
@@ -669,7 +667,7 @@ def run_tracker(
             opt = best_opt
             best = opt.best
             x_prev = np.array(best.x, dtype=np.float64)
-            n_evals = extra_evals
+            n_evals = frame_evals
             score = best.score
             carry = opt.carry() if hasattr(opt, "carry") else None
             if recovery is not None:

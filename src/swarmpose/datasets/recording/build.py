@@ -27,6 +27,7 @@ import os
 import shutil
 import sys
 import time
+import warnings
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -37,8 +38,9 @@ import numpy as np
 
 from swarmpose.camera import Camera
 from swarmpose.datasets.recording.match import fit_camera, frame_plan, match_cameras, pad_to, with_size
-from swarmpose.datasets.recording.subject import MIN_CONFIDENCE, ViewSelection, consistent_views
+from swarmpose.datasets.recording.subject import ViewSelection, consistent_views
 from swarmpose.datasets.recording.sync import OffsetSearch, estimate_offsets
+from swarmpose.detection.joints import MIN_CONFIDENCE
 from swarmpose.errors import ConfigError, DataError
 from swarmpose.io.sequence import MarkerData, SequenceWriter
 from swarmpose.io.video import FrameSource, open_frames
@@ -465,11 +467,12 @@ def _import(sources, calibration, out, opt: ImportOptions, detector, force: bool
                                     "cost_after_px": search.cost_after, "frames": search.frames,
                                     "table": {cams[c].name: row for c, row in search.table.items()}}
         if sel is not None:
-            _summarise(result, cams, sel, kp, cf)
+            residual = residuals(cams, sel.points, kp)  # (T, C, 15) px of the videos
+            _summarise(result, cams, sel, residual, cf)
             (tmp / IMPORT_DIR).mkdir(exist_ok=True)
-            np.savez_compressed(tmp / IMPORT_DIR / "keypoints3d.npz", points=sel.points, residual=residuals(cams, sel.points, kp), confidence=cf,
-                                keypoints=kp, inlier=sel.inlier, swapped=sel.swapped, video_frames=plan,
-                                threshold=np.float64(threshold))
+            np.savez_compressed(tmp / IMPORT_DIR / "keypoints3d.npz", points=sel.points, residual=residual,
+                                confidence=cf, keypoints=kp, inlier=sel.inlier, swapped=sel.swapped,
+                                video_frames=plan, threshold=np.float64(threshold))
         seconds["write"] = time.perf_counter() - t0
         seconds["total"] = time.perf_counter() - t_start
         result.seconds = seconds
@@ -492,22 +495,16 @@ def _jsonable(o: Any) -> Any:
     raise TypeError(f"not JSON-able: {type(o)}")
 
 
-def _summarise(result: RecordingImport, cams: Sequence[Camera], sel: ViewSelection, kp: np.ndarray,
+def _summarise(result: RecordingImport, cams: Sequence[Camera], sel: ViewSelection, residual: np.ndarray,
                cf: np.ndarray) -> None:
-    """Residual figures: per camera the median over its confident joints, per frame the median over all."""
-    r = residuals(cams, sel.points, kp)
-    r = np.where(cf >= MIN_CONFIDENCE, r, np.nan)
-    T = r.shape[0]
-    per_cam = {}
-    for c, cam in enumerate(cams):
-        v = r[:, c][np.isfinite(r[:, c])]
-        per_cam[cam.name] = float(np.median(v)) if v.size else float("nan")
-    result.residual_px = per_cam
-    per_frame = np.full(T, np.nan)
-    for t in range(T):
-        v = r[t][np.isfinite(r[t])]
-        if v.size:
-            per_frame[t] = np.median(v)
+    """Residual figures from ``residual`` (T, C, J): per camera the median over its confident joints, per frame
+    the median over all views' confident joints."""
+    r = np.where(cf >= MIN_CONFIDENCE, residual, np.nan)
+    with warnings.catch_warnings():  # a camera or frame without confident joints: NaN
+        warnings.simplefilter("ignore", RuntimeWarning)
+        per_cam = np.nanmedian(r.transpose(1, 0, 2).reshape(len(cams), -1), axis=1)
+        per_frame = np.nanmedian(r.reshape(r.shape[0], -1), axis=1)
+    result.residual_px = {cam.name: float(v) for cam, v in zip(cams, per_cam, strict=True)}
     if np.isfinite(per_frame).any():
         result.frame_residual_max_px = float(np.nanmax(per_frame))
         result.worst_frame = int(np.nanargmax(per_frame))

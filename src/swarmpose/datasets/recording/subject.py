@@ -22,12 +22,11 @@ from itertools import combinations
 import numpy as np
 
 from swarmpose.camera import Camera
+from swarmpose.detection.joints import MIN_CONFIDENCE
 from swarmpose.triangulation import residuals, triangulate
 
 __all__ = ["ViewSelection", "consistent_views", "view_residuals"]
 
-#: Keypoints below this confidence do not vote (MediaPipe's visibility of an occluded joint is low).
-MIN_CONFIDENCE = 0.3
 
 
 @dataclass

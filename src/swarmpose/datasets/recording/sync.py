@@ -18,7 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from swarmpose.camera import Camera
-from swarmpose.datasets.recording.subject import MIN_CONFIDENCE, consistent_views
+from swarmpose.datasets.recording.subject import consistent_views
+from swarmpose.detection.joints import MIN_CONFIDENCE
 from swarmpose.triangulation import residuals
 
 __all__ = ["OffsetSearch", "estimate_offsets", "sync_cost"]

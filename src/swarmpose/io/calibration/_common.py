@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from swarmpose.camera import Camera
+from swarmpose.camera import Camera, unique_cameras
 from swarmpose.errors import ConfigError, DataError, FormatError
 
 __all__ = ["Calibration", "RawCalibration", "MM_PER_UNIT"]
@@ -240,16 +240,9 @@ def make_camera(path: Path, camera: str, **kwargs: Any) -> Camera:
 
 def camera_list(cameras: Any) -> list[Camera]:
     """A writer's cameras: a Calibration or Camera objects with unique names."""
-    cams = list(cameras.cameras if isinstance(cameras, Calibration) else cameras)
+    cams = unique_cameras(cameras.cameras if isinstance(cameras, Calibration) else cameras, "a calibration writer")
     if not cams:
         raise ConfigError("no cameras to write")
-    for c in cams:
-        if not isinstance(c, Camera):
-            raise ConfigError(f"expected Camera objects, got {type(c).__name__}")
-    names = [c.name for c in cams]
-    dup = sorted({n for n in names if names.count(n) > 1})
-    if dup:
-        raise ConfigError(f"camera names must be unique, repeated: {dup}")
     return cams
 
 
