@@ -8,8 +8,8 @@ refined-keypoints --height H`` tracks it with H the clip skeleton's stature; and
 the withheld joints. Beside it: ``refined`` on the original sequence, started from the IK fit of the truth,
 and the subject's limb lengths against the skeleton's (from stature alone, then from the keypoints).
 
-Run:  .venv/bin/python scripts/track_without_truth.py [--clips CLIP ...] [--fps 20] [--max-frames N] [--import-only]
-      [--no-keypoints] [--json]
+Run:  .venv/bin/python scripts/track_without_truth.py [--clips CLIP ...] [--fps 20] [--max-frames N] [--runs N] [--import-only]
+      [--no-keypoints] [--subject-effect] [--json]
 (--import-only: import and fit where the truth's pelvis and thorax lie along the keypoints' trunk, no tracking;
 --no-keypoints: import without the detector and track with ``refined --height H`` from the silhouettes alone.)
 """
@@ -52,14 +52,19 @@ def run(cmd: list[str]) -> dict:
 
 
 def scored(results: Path, truth: np.ndarray) -> dict:
-    with np.load(results / "run_000" / "joints.npz") as z:
-        joints = z["joints"]
+    """Errors of the runs in ``results`` against ``truth``: means over the runs, and each run's D_mean."""
     from swarmpose.joints import JOINTS15
 
-    dist = np.linalg.norm(joints - truth, axis=-1)
-    d = dist.mean(axis=1)
-    return {"frame0_mm": float(d[0]), "d_mean_mm": float(d.mean()), "d_mean_first20_mm": float(d[:20].mean()),
-            "d_max_mm": float(d.max()), "per_joint_mm": dict(zip(JOINTS15, dist.mean(axis=0).tolist(), strict=True))}
+    dists = []
+    for run_dir in sorted(results.glob("run_*")):
+        with np.load(run_dir / "joints.npz") as z:
+            dists.append(np.linalg.norm(z["joints"] - truth, axis=-1))
+    dist = np.stack(dists)  # (runs, T, 15)
+    d = dist.mean(axis=2)
+    return {"frame0_mm": float(d[:, 0].mean()), "d_mean_mm": float(d.mean()),
+            "d_mean_first20_mm": float(d[:, :20].mean()), "d_max_mm": float(d.max(axis=1).mean()),
+            "runs_d_mean_mm": d.mean(axis=1).tolist(),
+            "per_joint_mm": dict(zip(JOINTS15, dist.mean(axis=(0, 1)).tolist(), strict=True))}
 
 
 def trunk_fit(imported: Path, truth_all: np.ndarray) -> dict:
@@ -87,7 +92,7 @@ def trunk_fit(imported: Path, truth_all: np.ndarray) -> dict:
 
 
 def one_clip(clip: Path, work: Path, fps: float, max_frames: int | None, import_only: bool = False,
-             keypoints: bool = True) -> dict:
+             keypoints: bool = True, subject_effect: bool = False, runs: int = 1) -> dict:
     seq_path = cached_sequence(clip, progress=False)
     spec = load_spec("balan31")
     truth_subject = subject_from_clip(spec, load_clip(clip))
@@ -112,7 +117,7 @@ def one_clip(clip: Path, work: Path, fps: float, max_frames: int | None, import_
     trunk = trunk_fit(imported, truth_all) if keypoints else None
     if import_only:
         return {"clip": clip.stem, "height_mm": height, "trunk": trunk}
-    extra = [] if max_frames is None else ["--max-frames", str(max_frames)]
+    extra = ([] if max_frames is None else ["--max-frames", str(max_frames)]) + ["--runs", str(runs)]
     no_truth = work / f"{clip.stem}-{'refined-keypoints' if keypoints else 'refined-silhouettes'}"
     plain = work / f"{clip.stem}-refined-ik"
     for p in (no_truth, plain):
@@ -124,8 +129,18 @@ def one_clip(clip: Path, work: Path, fps: float, max_frames: int | None, import_
     kp_subject = Subject.load(no_truth / "subject.json")  # from the stature alone without keypoints
     true_len, kp_len = limb_lengths(truth_subject), limb_lengths(kp_subject)
     h_len = limb_lengths(subject_from_height(spec, height))
+    by_subject = {}
+    if subject_effect:  # the same tracker from the IK fit of the truth, with the subject measured without it
+        for name, how in (("stature", ["--height", f"{height:.0f}"]),
+                          ("keypoints", ["--subject", str(no_truth / "subject.json")])):
+            out = work / f"{clip.stem}-refined-ik-subject-{name}"
+            shutil.rmtree(out, ignore_errors=True)
+            run([*CLI, "track", str(seq_path), "--algo", "refined", "--fps", f"{fps:g}", "--out", str(out), "--json",
+                 *how, *extra])
+            by_subject[name] = scored(out, truth)
     return {"clip": clip.stem, "height_mm": height, "frames": int(len(truth)), "trunk": trunk,
             "without_truth": scored(no_truth, truth), "refined_from_ik": scored(plain, truth),
+            "refined_from_ik_by_subject": by_subject,
             "limbs_mm": {k: {"skeleton": true_len[k], "stature": h_len[k], "keypoints": kp_len[k]} for k in true_len}}
 
 
@@ -134,15 +149,18 @@ def main() -> None:
     ap.add_argument("--clips", nargs="*", default=["cmu_16_16_walk", "cmu_16_18_turn"])
     ap.add_argument("--fps", type=float, default=20.0)
     ap.add_argument("--max-frames", type=int, default=None)
+    ap.add_argument("--runs", type=int, default=1, help="runs of each track (seed 0); errors are means over them")
     ap.add_argument("--work", type=Path, default=Path("results/without-truth"))
     ap.add_argument("--import-only", action="store_true", help="import and fit the trunk joints, no tracking")
     ap.add_argument("--no-keypoints", action="store_true",
                     help="no detector: start from the silhouettes and track with refined --height H")
+    ap.add_argument("--subject-effect", action="store_true",
+                    help="also track from the IK fit with the subject from the stature, then from the keypoints")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
     args.work.mkdir(parents=True, exist_ok=True)
     rows = [one_clip(MOCAP / f"{c}.bvh", args.work, args.fps, args.max_frames, args.import_only,
-                     not args.no_keypoints) for c in args.clips]
+                     not args.no_keypoints, args.subject_effect, args.runs) for c in args.clips]
     if args.json:
         print(json.dumps({"clips": rows}))
         return
@@ -156,12 +174,24 @@ def main() -> None:
     if args.import_only:
         return
     print()
-    print("| clip | stature mm | frame 0 mm | D_mean first 20 | D_mean | D_max | refined from the IK fit: D_mean |")
+    def spread(r: dict) -> str:
+        d = r["runs_d_mean_mm"]
+        return f"{r['d_mean_mm']:.1f}" + (f" ({min(d):.1f}-{max(d):.1f})" if len(d) > 1 else "")
+
+    print("| clip | stature mm | frame 0 mm | D_mean first 20 | D_mean (runs) | D_max | refined from the IK fit: "
+          "D_mean (runs) |")
     print("|---|---:|---:|---:|---:|---:|---:|")
     for r in rows:
         w, p = r["without_truth"], r["refined_from_ik"]
         print(f"| {r['clip']} | {r['height_mm']:.0f} | {w['frame0_mm']:.1f} | {w['d_mean_first20_mm']:.1f} | "
-              f"{w['d_mean_mm']:.1f} | {w['d_max_mm']:.1f} | {p['d_mean_mm']:.1f} |")
+              f"{spread(w)} | {w['d_max_mm']:.1f} | {spread(p)} |")
+    if args.subject_effect:
+        print("\n| clip | `refined` from the IK fit, subject from: skeleton | stature | keypoints |")
+        print("|---|---:|---:|---:|")
+        for r in rows:
+            b = r["refined_from_ik_by_subject"]
+            print(f"| {r['clip']} | {spread(r['refined_from_ik'])} | {spread(b['stature'])} | "
+                  f"{spread(b['keypoints'])} |")
     print("\n| clip | limb | skeleton mm | from stature | from keypoints |")
     print("|---|---|---:|---:|---:|")
     for r in rows:
