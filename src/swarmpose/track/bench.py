@@ -20,7 +20,8 @@ __all__ = ["bench_track", "repeated"]
 
 #: What each part of :data:`~swarmpose.track.timing.PARTS` covers.
 PART_HELP = {
-    "features": "frame reading, background subtraction, silhouettes, edge maps, per-frame preparation",
+    "features": "waiting for the frame (read, background subtraction, silhouettes and edge maps run ahead on a "
+                "worker thread) and the per-frame preparation",
     "motion": "motion model: the prediction and the moved particle set",
     "optimiser": "the search's own work (ask/tell, sampling, weights), without fitness and priors",
     "fitness": "fitness kernels (kinematics, projection, silhouette, edges; the distance maps)",

@@ -8,13 +8,15 @@ tracked views (``track --views``) are included.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from concurrent.futures import Future, ThreadPoolExecutor
 from typing import Any
 
 import numpy as np
 
 from swarmpose.errors import DataError
 
-__all__ = ["frame_observation", "IMAGE_FITNESS", "MARKER_FITNESS"]
+__all__ = ["frame_observation", "IMAGE_FITNESS", "MARKER_FITNESS", "Prefetcher"]
 
 #: The fitness kinds that read images, and those that read 2D markers.
 IMAGE_FITNESS = ("silhouette_edge", "deutscher_reid")
@@ -54,3 +56,68 @@ def frame_observation(seq: Any, k: int, kind: str, downsample: int, backgrounds:
     kp = None if keypoints is None else (keypoints[0][k][v], keypoints[1][k][v])
     return compute_features(images, backgrounds, cams, downsample=downsample, silhouette_options=sil_opts,
                             edge_options=edge_opts, silhouettes=stored, keypoints=kp)
+
+
+def _lower_priority() -> None:
+    """Lowest priority (nice 19) for the calling thread, where the system allows it (Linux: per thread)."""
+    import os
+    import threading
+
+    try:
+        os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), 19)
+    except (AttributeError, OSError):
+        pass
+
+
+class Prefetcher:
+    """Frame ``i + 1``'s observation read and computed on a worker thread while frame ``i`` is tracked.
+
+    ``load(i)`` makes position ``i``'s observation; :meth:`get` returns it (computed now unless it was already
+    asked for) and starts position ``i + 1`` on the worker. Image decoding and OpenCV release the GIL, so the
+    next frame's features overlap the optimiser's single-threaded Python work; the worker runs at the lowest
+    scheduling priority (Linux), so that it takes the cores the fitness kernels leave idle. At most one load runs at a time,
+    always on the worker thread once started, so the sequence is never read from two threads at once. A load's
+    error is raised by the :meth:`get` that asks for that position. Use as a context manager (or call
+    :meth:`close`) to stop the worker.
+    """
+
+    def __init__(self, load: Callable[[int], Any], n: int, *, enabled: bool = True):
+        self._load = load
+        self._n = int(n)
+        self._pool = (ThreadPoolExecutor(max_workers=1, thread_name_prefix="swarmpose-prefetch", initializer=_lower_priority)
+                      if enabled else None)
+        self._pending: tuple[int, Future] | None = None
+
+    def get(self, i: int) -> Any:
+        """Position ``i``'s observation; starts position ``i + 1`` in the background."""
+        if self._pool is None:
+            return self._load(i)
+        fut = None
+        if self._pending is not None:
+            j, f = self._pending
+            self._pending = None
+            if j == i:
+                fut = f
+            else:  # not the frame asked for: let it finish (one load at a time), then drop it
+                f.exception()
+        if fut is None:
+            fut = self._pool.submit(self._load, i)
+        obs = fut.result()
+        if i + 1 < self._n:
+            self._pending = (i + 1, self._pool.submit(self._load, i + 1))
+        return obs
+
+    def close(self) -> None:
+        """Wait for the load in flight (its result or error is dropped) and stop the worker."""
+        if self._pending is not None:
+            self._pending[1].exception()
+            self._pending = None
+        if self._pool is not None:
+            self._pool.shutdown(wait=True)
+            self._pool = None
+
+    def __enter__(self) -> Prefetcher:
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()

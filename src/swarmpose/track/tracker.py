@@ -45,7 +45,7 @@ from swarmpose.errors import ConfigError, DataError, FormatError
 from swarmpose.io.files import load_npz, read_json_object
 from swarmpose.metrics import track_errors, valid_frames
 from swarmpose.track.motion import parse_motion
-from swarmpose.track.observation import IMAGE_FITNESS, MARKER_FITNESS, frame_observation
+from swarmpose.track.observation import IMAGE_FITNESS, MARKER_FITNESS, Prefetcher, frame_observation
 from swarmpose.track.progress import RunProgress
 from swarmpose.track.recovery import LIMBS, Recovery
 from swarmpose.track.start import (
@@ -621,6 +621,12 @@ def run_tracker(
     kp_joints = None  # the tracked views' triangulated keypoints, for the configurations that fit them per frame
     if getattr(algo, "keypoint_ik", False) and has_keypoints(seq):
         kp_joints = keypoint_joints(seq, setup.frame_indices, views=views)
+
+    def load(i: int) -> Any:  # on the prefetch thread: frame i + 1 is read while frame i is tracked
+        return frame_observation(seq, int(setup.frame_indices[i]), cfg.fitness_kind, cfg.downsample, backgrounds,
+                                 feature_options, views, keypoints)
+
+    prefetch = Prefetcher(load, T if stop_after is None else min(T, stop_after))
     try:
         for i in range(start_k, T):
             if stop_after is not None and i >= stop_after:
@@ -628,8 +634,7 @@ def run_tracker(
             t0 = time.perf_counter()
             k = int(setup.frame_indices[i])
             with timer.part("features"):
-                observation = frame_observation(seq, k, cfg.fitness_kind, cfg.downsample, backgrounds,
-                                                 feature_options, views, keypoints)
+                observation = prefetch.get(i)
             fitness.bind(observation if observe is None else observe(k, observation))
             if i == start_k:  # compile the fitness kernels (numba: seconds on a fresh install) off the clock,
                 tw = time.perf_counter()  # so that frames/s is the tracking speed; the score is not used
@@ -701,6 +706,7 @@ def run_tracker(
             if progress is not None:
                 progress(i + 1, T)
     finally:
+        prefetch.close()
         seq.close()
         if store is not None:
             store.close()
