@@ -184,3 +184,25 @@ def test_numba_collisions_match_the_reference_at_any_tolerance(tol):
     fast = priors.collisions(poses)
     assert np.array_equal(fast, priors.collisions_reference(poses))
     assert fast.any() and not fast.all()
+
+
+@pytest.mark.parametrize("spec", ["balan31", "full45"])
+@pytest.mark.parametrize("limits, collisions", [(True, True), (False, True), (True, False)])
+def test_the_fused_check_agrees_with_the_plain_one(spec, limits, collisions):
+    """valid (one numba pass: limits, kinematics, collisions) against valid_reference (numpy limits, then the
+    collision kernel on batched kinematics), on poses spread a little past the limits, so that both answers occur."""
+    m = load_model(spec)
+    pr = HardPriors(m, check_limits=limits, check_collisions=collisions)
+    rng = np.random.default_rng(5)
+    x = np.tile(m.zero_pose(), (3000, 1))
+    x[:, m.param_index("pelvis_tz")] = 1000.0
+    bounded = np.isfinite(m.lower) & np.isfinite(m.upper)
+    span = np.where(bounded, np.where(bounded, m.upper, 0.0) - np.where(bounded, m.lower, 0.0), 2 * np.pi)
+    mid = np.where(bounded, 0.5 * (np.where(bounded, m.upper, 0.0) + np.where(bounded, m.lower, 0.0)), 0.0)
+    rot = np.asarray(m.is_rotation)
+    wide = np.where(np.arange(3000) % 3 == 0, 1.2, 0.8)[:, None]  # a third may leave the limits
+    x[:, rot] = mid[rot] + (rng.random((3000, rot.sum())) - 0.5) * wide * span[rot]
+    x[::97, 7] = np.nan  # a NaN parameter breaks the limits
+    got, want = pr.valid(x), pr.valid_reference(x)
+    assert np.array_equal(got, want)
+    assert 0.05 < got.mean() < 0.95  # both answers are exercised

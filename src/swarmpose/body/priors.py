@@ -23,10 +23,15 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
+from swarmpose.body.kinematics import fk_pose_into
 from swarmpose.body.model import BodyModel
 from swarmpose.errors import ConfigError
 
 __all__ = ["HardPriors"]
+
+#: Hash of body/kinematics.py, whose FK the fused kernel calls: numba's cache sees edits to this file only
+#: (tests/test_numba_cache.py says when to change it and gives the new value).
+INLINED_SOURCES_SHA1 = "53350a34825074f8"
 
 
 @dataclass
@@ -66,7 +71,18 @@ class HardPriors:
         return self.valid(poses)
 
     def valid(self, poses: np.ndarray) -> np.ndarray:
-        """``(N,)`` True where the pose is inside the joint limits and free of inter-penetration."""
+        """``(N,)`` True where the pose is inside the joint limits and free of inter-penetration (one numba pass:
+        limits, kinematics, collisions; :meth:`valid_reference` is the plain version it is tested against)."""
+        p = np.ascontiguousarray(self.model.check_poses(poses))
+        ca = self.model.cone_arrays
+        pairs = self._pairs if self.check_collisions else self._pairs[:0]
+        out = np.empty(p.shape[0], dtype=np.bool_)
+        _valid_kernel(p, self.model.lower, self.model.upper, self.check_limits, *self.model.kin.as_tuple(), ca.joint,
+                      ca.start, ca.end, ca.radii, ca.scale, pairs, self._frac, 1.0 - self.penetration_tolerance, out)
+        return out
+
+    def valid_reference(self, poses: np.ndarray) -> np.ndarray:
+        """Plain version of :meth:`valid`: the limits and :meth:`collisions`, as separate batched steps."""
         p = self.model.check_poses(poses)
         ok = np.ones(p.shape[0], dtype=bool)
         if self.check_limits:
@@ -137,50 +153,77 @@ class HardPriors:
         return reasons
 
 
+@nb.njit(cache=True, nogil=True, inline="always")
+def _pair_hits(T, a, b, joint, start, end, radii, scale, frac, keep):
+    """Whether a sphere of cone ``b``'s chain lies in cone ``a``'s volume, for one pose's transforms ``T``."""
+    Ta = T[joint[a]]
+    Tb = T[joint[b]]
+    # A's and B's axes in world
+    sa0 = Ta[0, 3] + Ta[0, 0] * start[a, 0] + Ta[0, 1] * start[a, 1] + Ta[0, 2] * start[a, 2]
+    sa1 = Ta[1, 3] + Ta[1, 0] * start[a, 0] + Ta[1, 1] * start[a, 1] + Ta[1, 2] * start[a, 2]
+    sa2 = Ta[2, 3] + Ta[2, 0] * start[a, 0] + Ta[2, 1] * start[a, 1] + Ta[2, 2] * start[a, 2]
+    ea0 = Ta[0, 3] + Ta[0, 0] * end[a, 0] + Ta[0, 1] * end[a, 1] + Ta[0, 2] * end[a, 2]
+    ea1 = Ta[1, 3] + Ta[1, 0] * end[a, 0] + Ta[1, 1] * end[a, 1] + Ta[1, 2] * end[a, 2]
+    ea2 = Ta[2, 3] + Ta[2, 0] * end[a, 0] + Ta[2, 1] * end[a, 1] + Ta[2, 2] * end[a, 2]
+    sb0 = Tb[0, 3] + Tb[0, 0] * start[b, 0] + Tb[0, 1] * start[b, 1] + Tb[0, 2] * start[b, 2]
+    sb1 = Tb[1, 3] + Tb[1, 0] * start[b, 0] + Tb[1, 1] * start[b, 1] + Tb[1, 2] * start[b, 2]
+    sb2 = Tb[2, 3] + Tb[2, 0] * start[b, 0] + Tb[2, 1] * start[b, 1] + Tb[2, 2] * start[b, 2]
+    eb0 = Tb[0, 3] + Tb[0, 0] * end[b, 0] + Tb[0, 1] * end[b, 1] + Tb[0, 2] * end[b, 2]
+    eb1 = Tb[1, 3] + Tb[1, 0] * end[b, 0] + Tb[1, 1] * end[b, 1] + Tb[1, 2] * end[b, 2]
+    eb2 = Tb[2, 3] + Tb[2, 0] * end[b, 0] + Tb[2, 1] * end[b, 1] + Tb[2, 2] * end[b, 2]
+    # axis . e_z of A's frame: the axis's rise out of the cross-section plane (checked non-zero)
+    rise = (ea0 - sa0) * Ta[0, 2] + (ea1 - sa1) * Ta[1, 2] + (ea2 - sa2) * Ta[2, 2]
+    rb0 = 0.5 * (radii[b, 0] * scale[b, 0] + radii[b, 0] * scale[b, 1])
+    rb1 = 0.5 * (radii[b, 1] * scale[b, 0] + radii[b, 1] * scale[b, 1])
+    for m in range(frac.shape[0]):
+        f = frac[m]
+        rho = rb0 + (rb1 - rb0) * f
+        d0 = sb0 + (eb0 - sb0) * f - sa0
+        d1 = sb1 + (eb1 - sb1) * f - sa1
+        d2 = sb2 + (eb2 - sb2) * f - sa2
+        s = (d0 * Ta[0, 2] + d1 * Ta[1, 2] + d2 * Ta[2, 2]) / rise
+        if s < 0.0 or s > 1.0:
+            continue
+        r0 = d0 - s * (ea0 - sa0)
+        r1 = d1 - s * (ea1 - sa1)
+        r2 = d2 - s * (ea2 - sa2)
+        x = r0 * Ta[0, 0] + r1 * Ta[1, 0] + r2 * Ta[2, 0]
+        y = r0 * Ta[0, 1] + r1 * Ta[1, 1] + r2 * Ta[2, 1]
+        ra = radii[a, 0] + (radii[a, 1] - radii[a, 0]) * s
+        axl = keep * (ra * scale[a, 0] + rho)
+        byl = keep * (ra * scale[a, 1] + rho)
+        if (x / axl) ** 2 + (y / byl) ** 2 < 1.0:
+            return True
+    return False
+
+
 @nb.njit(cache=True, nogil=True)
 def _collisions_kernel(T, joint, start, end, radii, scale, pairs, frac, keep, out):
     """Sphere chain of cone B against the elliptical volume of cone A, for every pose and pair."""
-    N = T.shape[0]
-    M = frac.shape[0]
-    for n in range(N):
+    for n in range(T.shape[0]):
         for i in range(pairs.shape[0]):
-            a = pairs[i, 0]
-            b = pairs[i, 1]
-            Ta = T[n, joint[a]]
-            Tb = T[n, joint[b]]
-            # A's axis in world
-            sa = np.empty(3)
-            ea = np.empty(3)
-            sb = np.empty(3)
-            eb = np.empty(3)
-            for r in range(3):
-                sa[r] = Ta[r, 3] + Ta[r, 0] * start[a, 0] + Ta[r, 1] * start[a, 1] + Ta[r, 2] * start[a, 2]
-                ea[r] = Ta[r, 3] + Ta[r, 0] * end[a, 0] + Ta[r, 1] * end[a, 1] + Ta[r, 2] * end[a, 2]
-                sb[r] = Tb[r, 3] + Tb[r, 0] * start[b, 0] + Tb[r, 1] * start[b, 1] + Tb[r, 2] * start[b, 2]
-                eb[r] = Tb[r, 3] + Tb[r, 0] * end[b, 0] + Tb[r, 1] * end[b, 1] + Tb[r, 2] * end[b, 2]
-            # axis . e_z of A's frame: the axis's rise out of the cross-section plane (checked non-zero)
-            rise = (ea[0] - sa[0]) * Ta[0, 2] + (ea[1] - sa[1]) * Ta[1, 2] + (ea[2] - sa[2]) * Ta[2, 2]
-            rb0 = 0.5 * (radii[b, 0] * scale[b, 0] + radii[b, 0] * scale[b, 1])
-            rb1 = 0.5 * (radii[b, 1] * scale[b, 0] + radii[b, 1] * scale[b, 1])
-            hit = False
-            for m in range(M):
-                f = frac[m]
-                rho = rb0 + (rb1 - rb0) * f
-                d0 = sb[0] + (eb[0] - sb[0]) * f - sa[0]
-                d1 = sb[1] + (eb[1] - sb[1]) * f - sa[1]
-                d2 = sb[2] + (eb[2] - sb[2]) * f - sa[2]
-                s = (d0 * Ta[0, 2] + d1 * Ta[1, 2] + d2 * Ta[2, 2]) / rise
-                if s < 0.0 or s > 1.0:
-                    continue
-                r0 = d0 - s * (ea[0] - sa[0])
-                r1 = d1 - s * (ea[1] - sa[1])
-                r2 = d2 - s * (ea[2] - sa[2])
-                x = r0 * Ta[0, 0] + r1 * Ta[1, 0] + r2 * Ta[2, 0]
-                y = r0 * Ta[0, 1] + r1 * Ta[1, 1] + r2 * Ta[2, 1]
-                ra = radii[a, 0] + (radii[a, 1] - radii[a, 0]) * s
-                axl = keep * (ra * scale[a, 0] + rho)
-                byl = keep * (ra * scale[a, 1] + rho)
-                if (x / axl) ** 2 + (y / byl) ** 2 < 1.0:
-                    hit = True
+            out[n, i] = _pair_hits(T[n], pairs[i, 0], pairs[i, 1], joint, start, end, radii, scale, frac, keep)
+
+
+@nb.njit(cache=True, nogil=True)
+def _valid_kernel(poses, lower, upper, check_limits, parents, offsets, rot_axis, rot_sign, rot_param, trans_param,
+                  joint, start, end, radii, scale, pairs, frac, keep, out):
+    """:meth:`HardPriors.valid` in one pass: the limits, then (for the poses inside them) kinematics and the
+    collision pairs, stopping at the first pair that collides."""
+    T = np.empty((parents.shape[0], 3, 4))
+    D = poses.shape[1]
+    for n in range(poses.shape[0]):
+        ok = True
+        if check_limits:
+            for d in range(D):
+                v = poses[n, d]
+                if not (v >= lower[d] and v <= upper[d]):
+                    ok = False
                     break
-            out[n, i] = hit
+        if ok and pairs.shape[0] > 0:
+            fk_pose_into(poses[n], parents, offsets, rot_axis, rot_sign, rot_param, trans_param, T)
+            for i in range(pairs.shape[0]):
+                if _pair_hits(T, pairs[i, 0], pairs[i, 1], joint, start, end, radii, scale, frac, keep):
+                    ok = False
+                    break
+        out[n] = ok

@@ -57,6 +57,8 @@ def default_results_name(name: str, cfg: TrackConfig) -> str:
         parts.append(f"h{cfg.height_mm:g}mm")
     if cfg.views:
         parts.append("views-" + folder_slug(cfg.views))
+    if cfg.backward:
+        parts.append("backward")
     return "-".join(parts)
 
 
@@ -158,6 +160,10 @@ def track(
                                        "needed)."),
     max_frames: int = typer.Option(None, min=1, help="Track only the first N frames at --fps (a quick try; the "
                                                      "default --out then has -<N>frames after the rate)."),
+    backward: bool = typer.Option(False, "--backward", help="Offline: track the frames again from the last one "
+                                                            "backwards and keep, per frame, the pose the fitness "
+                                                            "prefers (the backward pass goes on from it). Twice "
+                                                            "the time; repairs limbs one direction loses."),
     workers: int = typer.Option(None, min=1, help="Parallel worker processes (default: one per core, at most --runs); "
                                                   "each uses cores / workers numba threads."),
     scheduler: str = typer.Option(None, help="Run on a Dask cluster at this address, e.g. tcp://host:8786 "
@@ -185,7 +191,8 @@ def track(
     cfg = TrackConfig(algo=algo, fps=fps, model=model, fitness=fitness, backend=backend,
                       downsample=downsample, seed=seed, fitness_options=fitness_options,
                       feature_options=features, optim_variant=variant, motion=motion,
-                      max_frames=max_frames, subject=str(subject or ""), height_mm=height, views=views)
+                      max_frames=max_frames, subject=str(subject or ""), height_mm=height, views=views,
+                      backward=backward)
     if backend == "torch" and not scheduler:
         import torch
 

@@ -101,7 +101,7 @@ def _run_cells(name: str, configs: list[tuple[Entry, TrackConfig]], planned: dic
             cell.mkdir(parents=True, exist_ok=True)
             write_config(cell, setup, runs, resume)
             cells.append((e, Path(seq), cell, setup))
-            jobs += [Job(str(seq), asdict(cfg), k, str(cell), resume, len(setup.frame_indices))
+            jobs += [Job(str(seq), asdict(cfg), k, str(cell), resume, setup.progress_frames)
                      for k in range(runs)]
     except BaseException:
         close_client(scheduler)

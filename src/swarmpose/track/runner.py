@@ -450,7 +450,7 @@ def sum_recoveries(per_run: Sequence[dict[str, Any]]) -> dict[str, int]:
 
 def _track_jobs(sequence: str | Path, config: TrackConfig, runs: int, out_dir: Path, setup: Any, *, resume: bool,
                 workers: int | None, scheduler: Any, progress: bool) -> dict[str, Any]:
-    jobs = [Job(str(sequence), asdict(config), k, str(out_dir), resume, len(setup.frame_indices))
+    jobs = [Job(str(sequence), asdict(config), k, str(out_dir), resume, setup.progress_frames)
             for k in range(runs)]
     per_run = run_jobs(jobs, workers=workers, scheduler=scheduler, progress=progress)
     if setup.has_ground_truth:

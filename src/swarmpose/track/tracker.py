@@ -49,18 +49,14 @@ from swarmpose.track.observation import IMAGE_FITNESS, MARKER_FITNESS, Prefetche
 from swarmpose.track.progress import RunProgress
 from swarmpose.track.recovery import LIMBS, Recovery
 from swarmpose.track.start import (
-    START_ROUNDS,
-    START_SEARCHES,
-    fill_gaps,
     has_keypoints,
-    heading_candidates,
-    keypoint_ik,
     keypoint_joints,
     keypoint_start,
     silhouette_centre,
     silhouette_start,
     tracked_views,
 )
+from swarmpose.track.step import FrameSearch, backward_pass
 from swarmpose.track.timing import PartTimer, TimedFitness
 
 LIMB_NAMES = tuple(LIMBS)
@@ -101,6 +97,7 @@ class TrackConfig:
     subject: str = ""  # a subject file (swarmpose subject) instead of the sequence's own
     height_mm: float | None = None  # or a subject from this stature (body.anthropometry)
     views: str = ""  # "cam01,cam02": track with these cameras only (the others held out for scoring); "" all
+    backward: bool = False  # offline: track the frames again backwards, keep per frame the better pose (track.step)
 
     def __post_init__(self) -> None:
         if not self.fps > 0:
@@ -231,6 +228,12 @@ class TrackSetup:
     world_from_source: np.ndarray
     evals_per_frame: int
     search_start: bool = False  # frame 0 searched over headings (a start from the silhouettes alone)
+
+    @property
+    def progress_frames(self) -> int:
+        """Frames a run reports progress over: twice the tracked frames, less one, with the backward pass."""
+        T = len(self.frame_indices)
+        return 2 * T - 1 if self.config.backward and T > 1 else T
 
     @property
     def valid(self) -> np.ndarray:
@@ -524,6 +527,8 @@ class RunResult:
     errors: dict[str, Any] = field(default_factory=dict)
     recovered: np.ndarray | None = None  # (T, limbs) bool: frames where a lost limb was searched again and kept
     part_seconds: dict[str, float] = field(default_factory=dict)  # this session's wall time per part (timing.PARTS)
+    passes: dict[str, np.ndarray] | None = None  # with the backward pass: the forward pass's poses and scores, and
+    #                                              which frames kept the backward pass's pose (backward_kept)
 
     @property
     def recoveries(self) -> dict[str, int]:
@@ -627,6 +632,9 @@ def run_tracker(
                                  feature_options, views, keypoints)
 
     prefetch = Prefetcher(load, T if stop_after is None else min(T, stop_after))
+    search = FrameSearch(model=model, algo=algo, fitness=fitness, motion=motion, motion_mask=motion_mask,
+                         constraint=constraint, timer=timer, extra_options=extra_options, recovery=recovery,
+                         kp_joints=kp_joints, search_start=setup.search_start)
     try:
         for i in range(start_k, T):
             if stop_after is not None and i >= stop_after:
@@ -640,62 +648,10 @@ def run_tracker(
                 tw = time.perf_counter()  # so that frames/s is the tracking speed; the score is not used
                 untimed_fitness.evaluate(x_prev[None])
                 t0 += time.perf_counter() - tw
-            with timer.part("motion"):
-                x_pred = motion.predict(params[:i] if i >= 2 else x_prev[None], constraint, motion_mask)
-                step = x_pred - x_prev
-                if carry is not None and np.any(step):
-                    carry = optim.ParticleSet(motion.move_particles(carry.particles, step, constraint),
-                                              carry.weights)
-            starts = [x_pred]
-            frame_evals = 0
-            if i == 0 and setup.search_start:  # the heading is unknown: the best few of a turn, each searched
-                turn = heading_candidates(model, x_pred)
-                first = fitness.evaluate(turn, extra_options or None)
-                frame_evals = len(turn)
-                starts = [turn[j] for j in np.argsort(-np.nan_to_num(first, nan=-np.inf))[:START_SEARCHES]]
-            best_opt = None
-            rounds = START_ROUNDS if i == 0 and setup.search_start else 0
-            while starts:
-                x_start = starts.pop(0)
-                with timer.part("optimiser"):
-                    opt = algo.start(x_start, rng, constraint=constraint, carry=carry)
-                    while not opt.done:
-                        poses = opt.ask()
-                        options = {**opt.fitness_options, **extra_options} if extra_options else opt.fitness_options
-                        opt.tell(fitness.evaluate(poses, options))
-                frame_evals += opt.evaluations
-                if best_opt is None or opt.best.score > best_opt.best.score:
-                    best_opt = opt
-                if not starts and rounds > 0:  # frame 0 from the silhouettes: search again from the best so far
-                    rounds -= 1
-                    starts.append(np.array(best_opt.best.x, dtype=np.float64))
-            opt = best_opt
-            best = opt.best
-            x_prev = np.array(best.x, dtype=np.float64)
-            n_evals = frame_evals
-            score = best.score
-            carry = opt.carry() if hasattr(opt, "carry") else None
-            if recovery is not None:
-                with timer.part("recovery"):
-                    rec = recovery.run(fitness, model, x_prev, rng, constraint, algo.sigma, extra_options or None)
-                n_evals += rec.evaluations
-                if rec.recovered:
-                    x_prev = rec.x
-                    score = float(fitness.evaluate(x_prev[None], extra_options or None)[0])
-                    n_evals += 1
-                    carry = _recentre(carry, x_prev, [model.group(LIMBS[limb][1]) for limb in rec.recovered],
-                                      model.lower, model.upper)
-                for limb in rec.recovered:
-                    recovered[i, LIMB_NAMES.index(limb)] = True
-            if kp_joints is not None:
-                with timer.part("keypoint_ik"):
-                    x_ik = keypoint_ik(model, fill_gaps(kp_joints, i, reach=2), x_prev, constraint)
-                if x_ik is not None:
-                    ik_score = float(fitness.evaluate(x_ik[None], {**algo.refine_options, **extra_options})[0])
-                    n_evals += 1
-                    if ik_score > score:
-                        x_prev, score = x_ik, ik_score
-                        carry = _recentre(carry, x_prev, [np.arange(model.n_params)], model.lower, model.upper)
+            res = search.step(i, params[:i] if i >= 2 else x_prev[None], x_prev, carry, rng, first=i == 0)
+            x_prev, score, n_evals, carry = res.x, res.score, res.evaluations, res.carry
+            for limb in res.recovered:
+                recovered[i, LIMB_NAMES.index(limb)] = True
             params[i], scores[i], evals[i] = x_prev, score, n_evals
             seconds[i] = time.perf_counter() - t0
             if store is not None:
@@ -704,7 +660,25 @@ def run_tracker(
                                recovered=recovered[i], x_prev=x_prev, rng_state=rng.bit_generator.state,
                                carry=None if carry is None else (carry.particles, carry.weights))
             if progress is not None:
-                progress(i + 1, T)
+                progress(i + 1, setup.progress_frames)
+        passes = None
+        if cfg.backward and stop_after is None and np.count_nonzero(evals) == T and T > 1:
+            prefetch.close()
+            back = Prefetcher(lambda j: load(T - 2 - j), T - 1)
+
+            def bind(j: int) -> None:
+                with timer.part("features"):
+                    obs = back.get(T - 2 - j)
+                fitness.bind(obs if observe is None else observe(int(setup.frame_indices[j]), obs))
+
+            try:
+                b = backward_pass(search, params, bind, np.random.default_rng(run_seed(cfg.seed, run).spawn(1)[0]),
+                                  None if progress is None else lambda d, _n: progress(T + d, setup.progress_frames))
+            finally:
+                back.close()
+            passes = {"forward_params": params, "forward_scores": scores, "backward_kept": b.backward}
+            params, scores = b.params, np.where(np.isnan(b.scores), scores, b.scores)
+            evals, seconds, recovered = evals + b.evaluations, seconds + b.seconds, recovered | b.recovered
     finally:
         prefetch.close()
         seq.close()
@@ -715,7 +689,7 @@ def run_tracker(
     joints = model.joints15(params[:done]) if done else np.zeros((0, 15, 3))
     result = RunResult(run=run, params=params[:done], joints=joints, scores=scores[:done],
                        evaluations=evals[:done], seconds=seconds[:done], recovered=recovered[:done],
-                       part_seconds={k: round(v, 6) for k, v in timer.seconds.items()})
+                       part_seconds={k: round(v, 6) for k, v in timer.seconds.items()}, passes=passes)
     if done == T:
         if setup.has_ground_truth:
             errs = track_errors(joints, setup.gt_joints)  # frames without valid ground truth are not scored
@@ -726,22 +700,11 @@ def run_tracker(
                          "evals_per_frame": int(evals.max()), "ik_floor_mm": setup.ik_floor_mm,
                          "recoveries": result.recoveries, "part_seconds": result.part_seconds,
                          "frames_timed": int(done - start_k)}
+        if passes is not None:
+            result.errors["backward_kept"] = int(passes["backward_kept"].sum())
         if run_dir is not None:
             _write_run(run_dir, setup, result, d_all)
     return result
-
-
-def _recentre(carry: Any, x: np.ndarray, groups: list[np.ndarray], lower: np.ndarray, upper: np.ndarray) -> Any:
-    """Move the carried particle set's recovered parameters onto ``x``, keeping their spread (a recovered
-    limb would otherwise be lost again by the next frame's search, which starts from the carried set)."""
-    if carry is None:
-        return None
-    from swarmpose import optim
-
-    particles = np.array(carry.particles, dtype=np.float64)
-    for idx in groups:
-        particles[:, idx] += x[idx] - np.average(particles[:, idx], axis=0, weights=carry.weights)
-    return optim.ParticleSet(np.clip(particles, lower, upper), carry.weights)
 
 
 def _write_run(run_dir: Path, setup: TrackSetup, result: RunResult, d_per_frame: np.ndarray) -> None:
@@ -750,7 +713,7 @@ def _write_run(run_dir: Path, setup: TrackSetup, result: RunResult, d_per_frame:
     _atomic_savez(run_dir / "track.npz", params=result.params, joints=result.joints, scores=result.scores,
                   evaluations=result.evaluations, seconds=result.seconds, frame_indices=setup.frame_indices,
                   d_per_frame=d_per_frame, param_names=np.array(setup.model.param_names),
-                  recovered=result.recovered, limbs=np.array(LIMB_NAMES))
+                  recovered=result.recovered, limbs=np.array(LIMB_NAMES), **(result.passes or {}))
     _atomic_savez(run_dir / "joints.npz", joints=result.joints, gt_joints=setup.gt_joints,
                   frame_times=setup.frame_times,
                   world_from_source=setup.world_from_source)

@@ -1,0 +1,207 @@
+"""One frame of a track: predict, search, recover lost limbs, fit the keypoints; and the offline backward pass.
+
+:class:`FrameSearch` is what the tracker does on each frame once the frame's observation is bound to the
+fitness: the motion model's prediction (and the carried particle set moved with it), the optimiser's search
+(on the first frame of a start from the silhouettes: a turn of headings, the best few searched, then more
+rounds from the best), the loss detection and re-search of :mod:`swarmpose.track.recovery`, and the per-frame
+keypoint IK of the configurations that ask for it.
+
+:func:`backward_pass` tracks a run's frames again from the last one to the first, started from the forward
+pass's last pose, and keeps per frame the better of the two passes' poses by the fitness (both scored with the
+same options); the backward pass goes on from the pose kept, so a frame where the forward pass was right
+restarts it. Losses are local in time and mostly not shared by the two directions
+(``shared/reference/forward-backward.md``), so the pass repairs the frames one direction lost.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from swarmpose.track.recovery import LIMBS
+from swarmpose.track.start import START_ROUNDS, START_SEARCHES, fill_gaps, heading_candidates, keypoint_ik
+
+__all__ = ["FrameSearch", "StepResult", "recentre", "backward_pass", "BackwardResult"]
+
+
+def recentre(carry: Any, x: np.ndarray, groups: list[np.ndarray], lower: np.ndarray, upper: np.ndarray) -> Any:
+    """Move the carried particle set's recovered parameters onto ``x``, keeping their spread (a recovered
+    limb would otherwise be lost again by the next frame's search, which starts from the carried set)."""
+    if carry is None:
+        return None
+    from swarmpose import optim
+
+    particles = np.array(carry.particles, dtype=np.float64)
+    for idx in groups:
+        particles[:, idx] += x[idx] - np.average(particles[:, idx], axis=0, weights=carry.weights)
+    return optim.ParticleSet(np.clip(particles, lower, upper), carry.weights)
+
+
+@dataclass
+class StepResult:
+    """One frame's answer: pose, score, fitness evaluations, the particle set to carry, limbs recovered."""
+
+    x: np.ndarray
+    score: float
+    evaluations: int
+    carry: Any
+    recovered: list[str] = field(default_factory=list)
+
+
+@dataclass
+class FrameSearch:
+    """The per-frame search of a run (module docstring). ``fitness`` is bound to the frame before :meth:`step`."""
+
+    model: Any
+    algo: Any
+    fitness: Any
+    motion: Any
+    motion_mask: np.ndarray
+    constraint: Callable[[np.ndarray], np.ndarray]
+    timer: Any
+    extra_options: dict
+    recovery: Any = None
+    kp_joints: np.ndarray | None = None
+    search_start: bool = False
+
+    def step(self, i: int, history: np.ndarray, x_prev: np.ndarray, carry: Any, rng: np.random.Generator,
+             first: bool = False) -> StepResult:
+        """Track position ``i`` from ``x_prev``; ``history`` = the poses tracked so far in the pass's order (the
+        motion model predicts from its last rows); ``first``: the first frame of a start from the silhouettes."""
+        from swarmpose import optim
+
+        model, timer, fitness, extra = self.model, self.timer, self.fitness, self.extra_options
+        with timer.part("motion"):
+            x_pred = self.motion.predict(history, self.constraint, self.motion_mask)
+            step = x_pred - x_prev
+            if carry is not None and np.any(step):
+                carry = optim.ParticleSet(self.motion.move_particles(carry.particles, step, self.constraint),
+                                          carry.weights)
+        starts = [x_pred]
+        evals = 0
+        searching = first and self.search_start
+        if searching:  # the heading is unknown: the best few of a turn, each searched
+            turn = heading_candidates(model, x_pred)
+            scores = fitness.evaluate(turn, extra or None)
+            evals = len(turn)
+            starts = [turn[j] for j in np.argsort(-np.nan_to_num(scores, nan=-np.inf))[:START_SEARCHES]]
+        best_opt = None
+        rounds = START_ROUNDS if searching else 0
+        while starts:
+            x_start = starts.pop(0)
+            with timer.part("optimiser"):
+                opt = self.algo.start(x_start, rng, constraint=self.constraint, carry=carry)
+                while not opt.done:
+                    poses = opt.ask()
+                    options = {**opt.fitness_options, **extra} if extra else opt.fitness_options
+                    opt.tell(fitness.evaluate(poses, options))
+            evals += opt.evaluations
+            if best_opt is None or opt.best.score > best_opt.best.score:
+                best_opt = opt
+            if not starts and rounds > 0:  # frame 0 from the silhouettes: search again from the best so far
+                rounds -= 1
+                starts.append(np.array(best_opt.best.x, dtype=np.float64))
+        opt = best_opt
+        x = np.array(opt.best.x, dtype=np.float64)
+        score = opt.best.score
+        carry = opt.carry() if hasattr(opt, "carry") else None
+        recovered: list[str] = []
+        if self.recovery is not None:
+            with timer.part("recovery"):
+                rec = self.recovery.run(fitness, model, x, rng, self.constraint, self.algo.sigma, extra or None)
+            evals += rec.evaluations
+            if rec.recovered:
+                x = rec.x
+                score = float(fitness.evaluate(x[None], extra or None)[0])
+                evals += 1
+                carry = recentre(carry, x, [model.group(LIMBS[limb][1]) for limb in rec.recovered],
+                                 model.lower, model.upper)
+            recovered = list(rec.recovered)
+        if self.kp_joints is not None:
+            with timer.part("keypoint_ik"):
+                x_ik = keypoint_ik(model, fill_gaps(self.kp_joints, i, reach=2), x, self.constraint)
+            if x_ik is not None:
+                ik_score = float(fitness.evaluate(x_ik[None], {**self.algo.refine_options, **extra})[0])
+                evals += 1
+                if ik_score > score:
+                    x, score = x_ik, ik_score
+                    carry = recentre(carry, x, [np.arange(model.n_params)], model.lower, model.upper)
+        return StepResult(x=x, score=float(score), evaluations=int(evals), carry=carry, recovered=recovered)
+
+    @property
+    def choice_options(self) -> dict | None:
+        """The options both passes' poses of a frame are scored with when one is chosen: the refinement's (the
+        last search a frame sees), with the run's extra options over them."""
+        opts = {**getattr(self.algo, "refine_options", {}), **self.extra_options}
+        return opts or None
+
+
+@dataclass
+class BackwardResult:
+    """The poses kept per frame after the backward pass, and what it cost.
+
+    Attributes
+    ----------
+    params : (T, D) the kept poses; scores : (T,) their scores (``choice_options``; NaN at the last frame).
+    backward : (T,) bool -- the backward pass's pose was kept (the last frame: False, both passes start there).
+    evaluations : (T,) int and seconds : (T,) -- of the backward pass, per frame.
+    recovered : (T, limbs) bool -- limbs the backward pass found lost and searched again with success.
+    """
+
+    params: np.ndarray
+    scores: np.ndarray
+    backward: np.ndarray
+    evaluations: np.ndarray
+    seconds: np.ndarray
+    recovered: np.ndarray
+
+
+def backward_pass(search: FrameSearch, forward: np.ndarray, observe: Callable[[int], Any],
+                  rng: np.random.Generator, progress: Callable[[int, int], None] | None = None) -> BackwardResult:
+    """Track positions ``T - 2 .. 0`` backwards from the forward pass's last pose (module docstring).
+
+    ``forward (T, D)`` are the forward pass's poses; ``observe(i)`` binds position ``i``'s observation to
+    ``search.fitness``; ``progress(done, T - 1)`` after each frame.
+    """
+    import time
+
+    limb_names = tuple(LIMBS)
+    model = search.model
+    T, D = forward.shape
+    params = np.array(forward, dtype=np.float64, copy=True)
+    scores = np.full(T, np.nan)
+    backward = np.zeros(T, dtype=bool)
+    evals = np.zeros(T, dtype=np.int64)
+    seconds = np.zeros(T)
+    recovered = np.zeros((T, len(limb_names)), dtype=bool)
+    if T < 2:
+        return BackwardResult(params, scores, backward, evals, seconds, recovered)
+    x_prev = params[T - 1].copy()
+    carry = None
+    order = [x_prev]  # the poses kept so far, in the backward order (the motion model reads the last two)
+    options = search.choice_options
+    for done, i in enumerate(range(T - 2, -1, -1), start=1):
+        t0 = time.perf_counter()
+        observe(i)
+        history = np.array(order[-2:]) if len(order) >= 2 else x_prev[None]
+        res = search.step(i, history, x_prev, carry, rng)
+        pair = search.fitness.evaluate(np.stack([params[i], res.x]), options)
+        pair = np.nan_to_num(np.asarray(pair, dtype=np.float64), nan=-np.inf)
+        evals[i] = res.evaluations + 2
+        carry = res.carry
+        if pair[1] > pair[0]:
+            x_prev, scores[i], backward[i] = res.x, pair[1], True
+            for limb in res.recovered:
+                recovered[i, limb_names.index(limb)] = True
+        else:  # the forward pass's pose is better: go on from it
+            x_prev, scores[i] = params[i].copy(), pair[0]
+            carry = recentre(carry, x_prev, [np.arange(D)], model.lower, model.upper)
+        params[i] = x_prev
+        order.append(x_prev)
+        seconds[i] = time.perf_counter() - t0
+        if progress is not None:
+            progress(done, T - 1)
+    return BackwardResult(params, scores, backward, evals, seconds, recovered)

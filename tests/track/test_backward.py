@@ -1,0 +1,82 @@
+"""The offline backward pass (``track --backward``, swarmpose.track.step.backward_pass)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from swarmpose.track.tracker import TrackConfig, prepare_track, run_tracker
+
+
+@pytest.fixture(scope="module")
+def tracked(short_sequence, tmp_path_factory):
+    """The short walk (4 frames at 20 fps) with `refined`, forwards only and with the backward pass."""
+    out = tmp_path_factory.mktemp("backward")
+    fwd = run_tracker(prepare_track(short_sequence, TrackConfig(algo="refined", seed=3), out / "f"), 0, out / "f")
+    cfg = TrackConfig(algo="refined", seed=3, backward=True)
+    both = run_tracker(prepare_track(short_sequence, cfg, out / "b"), 0, out / "b")
+    return fwd, both, out
+
+
+def test_the_forward_pass_is_the_plain_track_and_each_frame_keeps_the_pose_the_fitness_prefers(tracked,
+                                                                                                 short_sequence):
+    from swarmpose.fitness import make_fitness
+    from swarmpose.io.sequence import open_sequence
+    from swarmpose.track.observation import frame_observation
+
+    fwd, both, out = tracked
+    T = len(fwd.params)
+    passes = both.passes
+    assert np.array_equal(passes["forward_params"], fwd.params)  # the same forward pass, same stream
+    assert np.array_equal(passes["forward_scores"], fwd.scores)
+    kept = passes["backward_kept"]
+    assert kept.shape == (T,) and not kept[-1]  # both passes start from the forward pass's last pose
+    assert np.array_equal(both.params[~kept], fwd.params[~kept])
+    assert np.array_equal(both.params[-1], fwd.params[-1])
+    # per frame, the kept pose scores at least as well as the forward pass's under the refinement's options
+    setup = prepare_track(short_sequence, TrackConfig(algo="refined", seed=3, backward=True), out / "b")
+    fit = make_fitness("silhouette_edge", setup.model)
+    options = dict(setup.config.optimizer(setup.model).refine_options) or None
+    with open_sequence(short_sequence) as seq:
+        for i in range(T - 1):
+            fit.bind(frame_observation(seq, int(setup.frame_indices[i]), "silhouette_edge", 1, seq.backgrounds()))
+            s = fit.evaluate(np.stack([fwd.params[i], both.params[i]]), options)
+            assert s[1] >= s[0]
+            assert both.scores[i] == pytest.approx(s[1])
+    # the cost of both passes, per frame (the last frame is tracked once)
+    assert np.all(both.evaluations[:-1] > fwd.evaluations[:-1])
+    assert both.evaluations[-1] == fwd.evaluations[-1]
+    assert both.errors["backward_kept"] == int(kept.sum())
+
+
+def test_the_results_folder_keeps_both_passes(tracked):
+    _, both, out = tracked
+    with np.load(out / "b" / "run_000" / "track.npz") as z:
+        assert np.array_equal(z["params"], both.params)
+        assert np.array_equal(z["forward_params"], both.passes["forward_params"])
+        assert np.array_equal(z["backward_kept"], both.passes["backward_kept"])
+    with np.load(out / "f" / "run_000" / "track.npz") as z:
+        assert "forward_params" not in z
+
+
+def test_same_seed_same_result_and_resume_after_an_interrupted_forward_pass(tracked, short_sequence, tmp_path):
+    _, both, _ = tracked
+    cfg = TrackConfig(algo="refined", seed=3, backward=True)
+    setup = prepare_track(short_sequence, cfg, tmp_path)
+    assert setup.progress_frames == 2 * len(setup.frame_indices) - 1
+    part = run_tracker(setup, 0, tmp_path, stop_after=2)
+    assert part.passes is None  # no backward pass before the forward pass is whole
+    seen = []
+    resumed = run_tracker(prepare_track(short_sequence, cfg, tmp_path), 0, tmp_path, resume=True,
+                          progress=lambda done, total: seen.append((done, total)))
+    assert np.array_equal(resumed.params, both.params)
+    assert np.array_equal(resumed.scores, both.scores)
+    T = len(setup.frame_indices)
+    assert seen[-1] == (2 * T - 1, 2 * T - 1)  # the progress bar runs over both passes
+
+
+def test_the_backward_setting_names_its_folder():
+    import swarmpose.cli.app  # noqa: F401  (the commands register on the app first)
+    from swarmpose.cli.track_commands import default_results_name
+
+    assert default_results_name("walk", TrackConfig(algo="refined", backward=True)) == "walk-refined-20fps-backward"
