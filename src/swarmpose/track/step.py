@@ -15,6 +15,7 @@ restarts it. Losses are local in time and mostly not shared by the two direction
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -166,8 +167,6 @@ def backward_pass(search: FrameSearch, forward: np.ndarray, observe: Callable[[i
     ``forward (T, D)`` are the forward pass's poses; ``observe(i)`` binds position ``i``'s observation to
     ``search.fitness``; ``progress(done, T - 1)`` after each frame.
     """
-    import time
-
     limb_names = tuple(LIMBS)
     model = search.model
     T, D = forward.shape

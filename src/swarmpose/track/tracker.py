@@ -569,6 +569,8 @@ def run_tracker(
     stays and ``resume=True`` continues from it). ``observe(k, observation)``, when given, receives
     each frame's observation (sequence frame ``k``) and returns the one to track against: the
     diagnostics in ``scripts/diagnose_tracking.py oracle`` use it to swap in ideal silhouettes or edges.
+    With ``config.backward`` the whole forward pass is followed by :func:`swarmpose.track.step.backward_pass`
+    (its own generator, spawned from the run's seed); ``RunResult.passes`` keeps the forward pass.
     """
     from swarmpose import optim
     from swarmpose.features import parse_feature_options
