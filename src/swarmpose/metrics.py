@@ -20,7 +20,8 @@ import numpy as np
 from swarmpose.errors import ShapeError
 from swarmpose.joints import JOINTS15
 
-__all__ = ["TrackErrors", "joint_distances", "valid_frames", "track_errors", "aggregate_runs", "spread_over_runs", "MMTA_DELTA_MM"]
+__all__ = ["TrackErrors", "joint_distances", "valid_frames", "track_errors", "aggregate_runs", "spread_over_runs",
+           "MMTA_DELTA_MM", "joint_acceleration"]
 
 MMTA_DELTA_MM = 100.0
 
@@ -52,6 +53,22 @@ class TrackErrors:
         d = asdict(self)
         d.pop("d_per_frame")
         return d
+
+
+def joint_acceleration(joints: np.ndarray, times: np.ndarray) -> float:
+    """Jitter: the mean magnitude of the joints' acceleration, mm/s^2, by central second differences over
+    ``joints (T, J, 3)`` at ``times (T,)`` s (uneven steps allowed); frames with a non-finite joint are left out;
+    NaN with fewer than 3 frames."""
+    x = np.asarray(joints, dtype=np.float64)
+    t = np.asarray(times, dtype=np.float64)
+    if len(x) < 3:
+        return float("nan")
+    h0 = (t[1:-1] - t[:-2])[:, None, None]
+    h1 = (t[2:] - t[1:-1])[:, None, None]
+    a = 2.0 * (h0 * x[2:] - (h0 + h1) * x[1:-1] + h1 * x[:-2]) / (h0 * h1 * (h0 + h1))
+    n = np.linalg.norm(a, axis=-1)
+    n = n[np.isfinite(n).all(axis=1)]
+    return float(n.mean()) if n.size else float("nan")
 
 
 def valid_frames(truth: np.ndarray) -> np.ndarray:

@@ -59,6 +59,8 @@ def default_results_name(name: str, cfg: TrackConfig) -> str:
         parts.append("views-" + folder_slug(cfg.views))
     if cfg.backward:
         parts.append("backward")
+    if cfg.smooth:
+        parts.append(f"smooth{cfg.smooth:g}s")
     return "-".join(parts)
 
 
@@ -164,6 +166,10 @@ def track(
                                                             "backwards and keep, per frame, the pose the fitness "
                                                             "prefers (the backward pass goes on from it). Twice "
                                                             "the time; repairs limbs one direction loses."),
+    smooth: float = typer.Option(0.0, "--smooth", min=0.0, max=10.0,
+                                 help="Offline: smooth the poses over time with a Gaussian of this standard "
+                                      "deviation in seconds, e.g. 0.05 (0: off). Less jitter; track.npz keeps the "
+                                      "raw poses as raw_params."),
     workers: int = typer.Option(None, min=1, help="Parallel worker processes (default: one per core, at most --runs); "
                                                   "each uses cores / workers numba threads."),
     scheduler: str = typer.Option(None, help="Run on a Dask cluster at this address, e.g. tcp://host:8786 "
@@ -192,7 +198,7 @@ def track(
                       downsample=downsample, seed=seed, fitness_options=fitness_options,
                       feature_options=features, optim_variant=variant, motion=motion,
                       max_frames=max_frames, subject=str(subject or ""), height_mm=height, views=views,
-                      backward=backward)
+                      backward=backward, smooth=smooth)
     if backend == "torch" and not scheduler:
         import torch
 

@@ -43,11 +43,12 @@ from swarmpose.body.priors import HardPriors
 from swarmpose.body.spec import Subject, load_spec
 from swarmpose.errors import ConfigError, DataError, FormatError
 from swarmpose.io.files import load_npz, read_json_object
-from swarmpose.metrics import track_errors, valid_frames
+from swarmpose.metrics import joint_acceleration, track_errors, valid_frames
 from swarmpose.track.motion import parse_motion
 from swarmpose.track.observation import IMAGE_FITNESS, MARKER_FITNESS, Prefetcher, frame_observation
 from swarmpose.track.progress import RunProgress
 from swarmpose.track.recovery import LIMBS, Recovery
+from swarmpose.track.smooth import smooth_params
 from swarmpose.track.start import (
     has_keypoints,
     keypoint_joints,
@@ -98,6 +99,7 @@ class TrackConfig:
     height_mm: float | None = None  # or a subject from this stature (body.anthropometry)
     views: str = ""  # "cam01,cam02": track with these cameras only (the others held out for scoring); "" all
     backward: bool = False  # offline: track the frames again backwards, keep per frame the better pose (track.step)
+    smooth: float = 0.0  # offline: smooth the poses over time, Gaussian sigma in seconds (track.smooth); 0 off
 
     def __post_init__(self) -> None:
         if not self.fps > 0:
@@ -110,6 +112,8 @@ class TrackConfig:
             object.__setattr__(self, "max_frames", int(n))
         if self.subject and self.height_mm is not None:
             raise ConfigError("give a subject file or a height, not both")
+        if isinstance(self.smooth, bool) or not (np.isfinite(self.smooth) and 0.0 <= self.smooth <= 10.0):
+            raise ConfigError(f"smooth must be a time in seconds, 0 (off) to 10, got {self.smooth!r}")
         if self.height_mm is not None:
             from swarmpose.body.anthropometry import standing_joints15
 
@@ -528,7 +532,8 @@ class RunResult:
     recovered: np.ndarray | None = None  # (T, limbs) bool: frames where a lost limb was searched again and kept
     part_seconds: dict[str, float] = field(default_factory=dict)  # this session's wall time per part (timing.PARTS)
     passes: dict[str, np.ndarray] | None = None  # with the backward pass: the forward pass's poses and scores, and
-    #                                              which frames kept the backward pass's pose (backward_kept)
+    #                                              which frames kept the backward pass's pose (backward_kept);
+    #                                              with smoothing: the poses before it (raw_params)
 
     @property
     def recoveries(self) -> dict[str, int]:
@@ -688,6 +693,9 @@ def run_tracker(
             store.close()
 
     done = int(np.count_nonzero(evals))
+    if cfg.smooth and done == T:  # offline: the whole track smoothed over time; the raw poses are kept
+        passes = {**(passes or {}), "raw_params": params}
+        params = smooth_params(params, setup.frame_times, cfg.smooth, model.is_rotation, model.lower, model.upper)
     joints = model.joints15(params[:done]) if done else np.zeros((0, 15, 3))
     result = RunResult(run=run, params=params[:done], joints=joints, scores=scores[:done],
                        evaluations=evals[:done], seconds=seconds[:done], recovered=recovered[:done],
@@ -701,8 +709,11 @@ def run_tracker(
         result.errors = {**error_fields, "ground_truth": setup.has_ground_truth, "frames_per_s": result.frames_per_s,
                          "evals_per_frame": int(evals.max()), "ik_floor_mm": setup.ik_floor_mm,
                          "recoveries": result.recoveries, "part_seconds": result.part_seconds,
-                         "frames_timed": int(done - start_k)}
-        if passes is not None:
+                         "frames_timed": int(done - start_k),
+                         "acceleration_mm_s2": joint_acceleration(joints, setup.frame_times),
+                         "gt_acceleration_mm_s2": (joint_acceleration(setup.gt_joints, setup.frame_times)
+                                                   if setup.has_ground_truth else None)}
+        if passes is not None and "backward_kept" in passes:
             result.errors["backward_kept"] = int(passes["backward_kept"].sum())
         if run_dir is not None:
             _write_run(run_dir, setup, result, d_all)
