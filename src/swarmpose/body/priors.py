@@ -154,23 +154,23 @@ class HardPriors:
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
+def _world(Tj, p):
+    """The point ``p (3,)`` of a joint frame in world: ``Tj (3, 4) @ (p, 1)``."""
+    return (Tj[0, 3] + Tj[0, 0] * p[0] + Tj[0, 1] * p[1] + Tj[0, 2] * p[2],
+            Tj[1, 3] + Tj[1, 0] * p[0] + Tj[1, 1] * p[1] + Tj[1, 2] * p[2],
+            Tj[2, 3] + Tj[2, 0] * p[0] + Tj[2, 1] * p[1] + Tj[2, 2] * p[2])
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
 def _pair_hits(T, a, b, joint, start, end, radii, scale, frac, keep):
     """Whether a sphere of cone ``b``'s chain lies in cone ``a``'s volume, for one pose's transforms ``T``."""
     Ta = T[joint[a]]
     Tb = T[joint[b]]
     # A's and B's axes in world
-    sa0 = Ta[0, 3] + Ta[0, 0] * start[a, 0] + Ta[0, 1] * start[a, 1] + Ta[0, 2] * start[a, 2]
-    sa1 = Ta[1, 3] + Ta[1, 0] * start[a, 0] + Ta[1, 1] * start[a, 1] + Ta[1, 2] * start[a, 2]
-    sa2 = Ta[2, 3] + Ta[2, 0] * start[a, 0] + Ta[2, 1] * start[a, 1] + Ta[2, 2] * start[a, 2]
-    ea0 = Ta[0, 3] + Ta[0, 0] * end[a, 0] + Ta[0, 1] * end[a, 1] + Ta[0, 2] * end[a, 2]
-    ea1 = Ta[1, 3] + Ta[1, 0] * end[a, 0] + Ta[1, 1] * end[a, 1] + Ta[1, 2] * end[a, 2]
-    ea2 = Ta[2, 3] + Ta[2, 0] * end[a, 0] + Ta[2, 1] * end[a, 1] + Ta[2, 2] * end[a, 2]
-    sb0 = Tb[0, 3] + Tb[0, 0] * start[b, 0] + Tb[0, 1] * start[b, 1] + Tb[0, 2] * start[b, 2]
-    sb1 = Tb[1, 3] + Tb[1, 0] * start[b, 0] + Tb[1, 1] * start[b, 1] + Tb[1, 2] * start[b, 2]
-    sb2 = Tb[2, 3] + Tb[2, 0] * start[b, 0] + Tb[2, 1] * start[b, 1] + Tb[2, 2] * start[b, 2]
-    eb0 = Tb[0, 3] + Tb[0, 0] * end[b, 0] + Tb[0, 1] * end[b, 1] + Tb[0, 2] * end[b, 2]
-    eb1 = Tb[1, 3] + Tb[1, 0] * end[b, 0] + Tb[1, 1] * end[b, 1] + Tb[1, 2] * end[b, 2]
-    eb2 = Tb[2, 3] + Tb[2, 0] * end[b, 0] + Tb[2, 1] * end[b, 1] + Tb[2, 2] * end[b, 2]
+    sa0, sa1, sa2 = _world(Ta, start[a])
+    ea0, ea1, ea2 = _world(Ta, end[a])
+    sb0, sb1, sb2 = _world(Tb, start[b])
+    eb0, eb1, eb2 = _world(Tb, end[b])
     # axis . e_z of A's frame: the axis's rise out of the cross-section plane (checked non-zero)
     rise = (ea0 - sa0) * Ta[0, 2] + (ea1 - sa1) * Ta[1, 2] + (ea2 - sa2) * Ta[2, 2]
     rb0 = 0.5 * (radii[b, 0] * scale[b, 0] + radii[b, 0] * scale[b, 1])

@@ -180,12 +180,12 @@ def backward_pass(search: FrameSearch, forward: np.ndarray, observe: Callable[[i
         return BackwardResult(params, scores, backward, evals, seconds, recovered)
     x_prev = params[T - 1].copy()
     carry = None
-    order = [x_prev]  # the poses kept so far, in the backward order (the motion model reads the last two)
     options = search.choice_options
     for done, i in enumerate(range(T - 2, -1, -1), start=1):
         t0 = time.perf_counter()
         observe(i)
-        history = np.array(order[-2:]) if len(order) >= 2 else x_prev[None]
+        # the last two poses kept, oldest first (params holds the kept poses from i + 1 on)
+        history = params[[i + 2, i + 1]] if i + 2 < T else x_prev[None]
         res = search.step(i, history, x_prev, carry, rng)
         pair = search.fitness.evaluate(np.stack([params[i], res.x]), options)
         pair = np.nan_to_num(np.asarray(pair, dtype=np.float64), nan=-np.inf)
@@ -199,7 +199,6 @@ def backward_pass(search: FrameSearch, forward: np.ndarray, observe: Callable[[i
             x_prev, scores[i] = params[i].copy(), pair[0]
             carry = recentre(carry, x_prev, [np.arange(D)], model.lower, model.upper)
         params[i] = x_prev
-        order.append(x_prev)
         seconds[i] = time.perf_counter() - t0
         if progress is not None:
             progress(done, T - 1)
