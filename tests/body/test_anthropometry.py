@@ -45,3 +45,24 @@ def test_subject_scales_with_height_and_builds_a_model(model):
 def test_a_height_not_in_millimetres_is_refused(bad):
     with pytest.raises(ConfigError, match="millimetres"):
         standing_joints15(bad)
+
+
+def test_split_arms_keeps_each_arms_length_and_nothing_else():
+    from swarmpose.body.anthropometry import UPPER_ARM_FRACTION, split_arms
+
+    spec = load_spec("balan31")
+    base = subject_from_height(spec, 1750)
+    offsets = dict(base.offsets)
+    offsets["l_upper_arm"], offsets["l_forearm"] = (0.0, 0.0, -240.0), (0.0, 0.0, -280.0)  # elbow 50 mm high
+    offsets["r_upper_arm"], offsets["r_forearm"] = (0.0, 0.0, -300.0), (0.0, 0.0, -200.0)
+    split = split_arms(Subject(name="kp", offsets=offsets, cones=base.cones, source="keypoints"))
+    assert UPPER_ARM_FRACTION == pytest.approx(0.188 / 0.333)
+    for side, total in (("l", 520.0), ("r", 500.0)):
+        upper, fore = split.offsets[f"{side}_upper_arm"], split.offsets[f"{side}_forearm"]
+        assert upper == pytest.approx((0.0, 0.0, -UPPER_ARM_FRACTION * total))
+        assert -(upper[2] + fore[2]) == pytest.approx(total)
+    assert {k: v for k, v in split.offsets.items() if "arm" not in k} == {
+        k: v for k, v in offsets.items() if "arm" not in k}
+    assert split.cones == base.cones and "split at 0.565" in split.source
+    with pytest.raises(ConfigError, match="upper arm's share"):
+        split_arms(base, 1.2)

@@ -144,3 +144,26 @@ def test_ik_fit_does_not_depend_on_where_the_subject_faces(mocap_dir):
     np.testing.assert_allclose(b[:, [tx, ty]], a[:, [tx, ty]] @ Rz[:2, :2].T, atol=0.05)
     others = [i for i in range(model.n_params) if i not in (rz, tx, ty)]
     np.testing.assert_allclose(b[:, others], a[:, others], atol=1e-4)
+
+
+def test_ik_with_missing_joints_fits_the_rest_and_leaves_the_unseen_limb_at_rest():
+    """missing=True: a wrist and elbow no view saw get no residual; the other joints are fitted as before and the
+    unseen arm keeps the start's (zero) angles; by default a missing joint is an error."""
+    m = load_model("balan31")
+    x = m.zero_pose()
+    x[m.param_index("pelvis_tz")] = 950.0
+    x[m.param_index("l_knee_flex")] = 0.6
+    x[m.param_index("l_elbow_flex")] = 1.0
+    joints = m.joints15(x[None])
+    seen = joints.copy()
+    seen[0, [3, 4]] = np.nan  # l_elbow, l_wrist
+    with pytest.raises(ValueError, match="non-finite"):
+        fit_ik(m, seen)
+    res = fit_ik(m, seen, missing=True)
+    assert np.isnan(res.joint_error_mm[0, [3, 4]]).all()
+    assert np.nanmax(res.joint_error_mm) < 2.0
+    fitted = res.params[0]
+    assert fitted[m.param_index("l_knee_flex")] == pytest.approx(0.6, abs=0.02)
+    assert abs(fitted[m.param_index("l_elbow_flex")]) < 0.01  # nothing pulled the elbow from the start
+    with pytest.raises(ValueError, match="no finite joint"):
+        fit_ik(m, np.full((1, 15, 3), np.nan), missing=True)

@@ -141,3 +141,35 @@ def test_without_keypoints_a_stature_starts_from_the_silhouettes(short_sequence:
     assert result.evaluations[1] == budget
     err = np.linalg.norm(result.joints - truth, axis=-1).mean(axis=1)
     assert (err < 150).all(), err
+
+
+def test_fill_gaps_takes_plausible_bones_from_the_nearest_frames():
+    """A missing joint comes from the nearest frame whose bone to the parent has a plausible length (against the
+    bone's median over all frames), moved with this frame's parent; a neighbour whose elbow is 500 mm from its
+    shoulder (a detector's mixed-up arm) is passed over; without a plausible neighbour within reach the joint
+    stays missing, and the start still fits the rest with the unseen arm at rest."""
+    from swarmpose.body.model import load_model
+    from swarmpose.joints import JOINT_INDEX as J
+    from swarmpose.track.start import fill_gaps, keypoint_start
+
+    model = load_model("balan31")
+    x = model.zero_pose()
+    x[model.param_index("pelvis_tz")] = 950.0
+    walk = np.repeat(model.joints15(x[None]), 12, axis=0)
+    walk += np.arange(12)[:, None, None] * np.array([60.0, 0, 0])  # walking along x, 60 mm per frame
+    kp = walk.copy()
+    kp[0, J["l_elbow"]] = np.nan
+    kp[1:4, J["l_elbow"]] = kp[1:4, J["l_shoulder"]] + [0, 500.0, 0]  # implausible in the nearest three frames
+    filled = fill_gaps(kp, 0)
+    assert np.allclose(filled[J["l_elbow"]], walk[0, J["l_elbow"]])  # frame 4's bone on frame 0's shoulder
+    assert np.isnan(fill_gaps(kp, 0, reach=3)[J["l_elbow"]]).all()  # none plausible within reach
+    assert np.allclose(fill_gaps(kp, 0, tolerance=10.0)[J["l_elbow"]], kp[1, J["l_elbow"]] - [60.0, 0, 0])
+    kp[:4, J["l_elbow"]] = np.nan
+    kp[:4, J["l_wrist"]] = np.nan
+    params, _, _ = keypoint_start(model, kp[:4], "seq", 0)  # no frame of these four sees the left arm
+    err = np.linalg.norm(model.joints15(params[:1])[0] - walk[0], axis=-1)
+    assert err.max() < 5.0  # the truth's arm hangs, as the rest pose's does
+    trunk = kp.copy()
+    trunk[:, J["l_hip"]] = np.nan
+    with pytest.raises(Exception, match="too few views see l_hip"):
+        keypoint_start(model, trunk, "seq", 0)

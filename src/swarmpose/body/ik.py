@@ -92,6 +92,7 @@ def fit_ik(
     damping: float = 1.0,
     rest_weight: float = 20.0,
     polish: bool = True,
+    missing: bool = False,
     progress=None,
 ) -> IKResult:
     """Fit ``model`` to ground-truth joints ``(T, 15, 3)`` (mm) frame by frame.
@@ -113,13 +114,20 @@ def fit_ik(
     polish : bool, default True
         Refine every frame's smooth fit on the joint residuals alone (``floor_params``); the errors
         are then those of the best fit. False: ``floor_params`` is ``params`` (faster, for tests).
+    missing : bool, default False
+        Allow non-finite joints (a detector's joint that no two views saw): they get no residual, so the
+        parameters only they would show stay near the start (the rest pose) and their errors are NaN.
+        By default a non-finite joint is an error.
     progress : optional callable ``progress(k)`` called after each frame (for progress bars).
     """
     gt = np.asarray(joints15, dtype=np.float64)
     if gt.ndim != 3 or gt.shape[1:] != (15, 3):
         raise ShapeError(f"joints15: expected shape (T, 15, 3), got {gt.shape}")
-    if not np.all(np.isfinite(gt)):
+    seen = np.repeat(np.isfinite(gt).all(axis=2), 3, axis=1).astype(float)  # (T, 45)
+    if not missing and not seen.all():
         raise ValueError("joints15 contains non-finite values")
+    if not seen.any(axis=1).all():
+        raise ValueError("joints15: a frame has no finite joint")
     T, D = gt.shape[0], model.n_params
     lo, hi = model.lower.copy(), model.upper.copy()
     # steps: 1e-6 rad for angles, 1e-3 mm for translations
@@ -136,16 +144,17 @@ def fit_ik(
     best = np.empty((T, D))  # the polished fits (the smooth ones without polish)
     x = initial_root_pose(model, gt[0]) if init is None else np.clip(np.asarray(init, float), lo, hi)
     for t in range(T):
-        target = gt[t].ravel()
+        m = seen[t]
+        target = np.where(m > 0, gt[t].ravel(), 0.0)
         prev = x.copy()
 
-        def residuals(p, target=target, prev=prev):
-            return np.concatenate([model.joints15(p)[0].ravel() - target, w * (p - prev), w_rest * p])
+        def residuals(p, target=target, prev=prev, m=m):
+            return np.concatenate([m * (model.joints15(p)[0].ravel() - target), w * (p - prev), w_rest * p])
 
-        def jacobian(p, target=target):
+        def jacobian(p, m=m):
             batch = np.vstack([p[None], p[None] + eye_h])
             j = model.joints15(batch).reshape(D + 1, -1)
-            return np.vstack([((j[1:] - j[0]) / h[:, None]).T, np.diag(w), np.diag(w_rest)])
+            return np.vstack([m[:, None] * ((j[1:] - j[0]) / h[:, None]).T, np.diag(w), np.diag(w_rest)])
 
         # unbounded heading keeps continuity across the ±pi seam; stay strictly inside bounds
         x0 = np.clip(x, lo_in, hi_in)
@@ -155,7 +164,7 @@ def fit_ik(
         x = sol.x
         params[t] = best[t] = x
         if polish:
-            fit = least_squares(lambda p, target=target: model.joints15(p)[0].ravel() - target,
+            fit = least_squares(lambda p, target=target, m=m: m * (model.joints15(p)[0].ravel() - target),
                                 np.clip(x, lo_in, hi_in), jac=lambda p: jacobian(p)[: 45], bounds=(lo, hi),
                                 method="trf", x_scale=np.where(model.is_rotation, 1.0, 100.0), max_nfev=max_nfev,
                                 xtol=1e-10, ftol=1e-10)

@@ -16,10 +16,11 @@ import numpy as np
 
 from swarmpose.detection.joints import MIN_CONFIDENCE
 from swarmpose.errors import ConfigError, DataError
-from swarmpose.joints import JOINTS15
+from swarmpose.joints import BONES15, JOINTS15
 from swarmpose.triangulation import residuals, triangulate
 
 __all__ = ["keypoint_joints", "keypoint_ik", "keypoint_start", "tracked_views", "has_keypoints", "fill_gaps",
+           "bone_lengths", "TRUNK_JOINTS",
            "silhouette_centre", "silhouette_start", "heading_candidates", "START_HEADINGS", "START_SEARCHES",
            "START_ROUNDS"]
 
@@ -61,17 +62,51 @@ def keypoint_joints(seq: Any, frames: np.ndarray, *, views: list[int] | None = N
     return np.where(np.isfinite(again), again, pts)
 
 
-def fill_gaps(joints: np.ndarray, k: int = 0, reach: int = 10) -> np.ndarray:
+def bone_lengths(joints: np.ndarray) -> np.ndarray:
+    """Median length (mm) of each of :data:`~swarmpose.joints.BONES15` over the frames of ``joints (T, 15, 3)``
+    where both its ends are finite; NaN where no frame has both."""
+    j = np.asarray(joints, dtype=np.float64)
+    out = np.full(len(BONES15), np.nan)
+    for b, (p, c) in enumerate(BONES15):
+        d = np.linalg.norm(j[:, c] - j[:, p], axis=-1)
+        d = d[np.isfinite(d)]
+        if d.size:
+            out[b] = float(np.median(d))
+    return out
+
+
+def fill_gaps(joints: np.ndarray, k: int = 0, reach: int = 10, tolerance: float = 0.3) -> np.ndarray:
     """Frame ``k``'s joints ``(15, 3)`` with each missing joint taken from the nearest frame (within ``reach``)
-    that has it; NaN where none does."""
-    out = np.array(joints[k], dtype=np.float64)
-    for j in np.flatnonzero(~np.isfinite(out).all(axis=1)):
+    that has it; NaN where none does.
+
+    Joints are filled from the pelvis outwards along :data:`~swarmpose.joints.BONES15`. Where the joint's parent
+    is known in both frames, the neighbour's bone (joint minus parent) is added to this frame's parent, and
+    only when its length is within ``tolerance`` of the bone's median over all frames: a neighbour whose
+    detector mixed the left and right arm (an elbow 500 mm from its shoulder) gives nothing, and the joint
+    stays missing. Without a parent the neighbour's joint is taken as it is.
+    """
+    j = np.asarray(joints, dtype=np.float64)
+    out = np.array(j[k], dtype=np.float64)
+    lengths = bone_lengths(j)
+    parent = {c: (p, b) for b, (p, c) in enumerate(BONES15)}
+    order = [JOINTS15.index("pelvis")] + [c for _, c in BONES15]
+    for c in order:
+        if np.isfinite(out[c]).all():
+            continue
+        p, b = parent.get(c, (None, None))
         for d in range(1, reach + 1):
             for kk in (k - d, k + d):
-                if 0 <= kk < len(joints) and np.isfinite(joints[kk, j]).all():
-                    out[j] = joints[kk, j]
+                if not (0 <= kk < len(j)) or not np.isfinite(j[kk, c]).all():
+                    continue
+                if p is not None and np.isfinite(out[p]).all() and np.isfinite(j[kk, p]).all():
+                    bone = j[kk, c] - j[kk, p]
+                    if np.isfinite(lengths[b]) and abs(np.linalg.norm(bone) / lengths[b] - 1.0) <= tolerance:
+                        out[c] = out[p] + bone
+                elif p is None or not np.isfinite(out[p]).all():
+                    out[c] = j[kk, c]
+                if np.isfinite(out[c]).all():
                     break
-            if np.isfinite(out[j]).all():
+            if np.isfinite(out[c]).all():
                 break
     return out
 
@@ -105,17 +140,23 @@ def tracked_views(seq: Any, views: str) -> list[int]:
     return [i for i, n in enumerate(names) if n in wanted]
 
 
+#: The joints a start from keypoints cannot do without: they place and turn the trunk.
+TRUNK_JOINTS = ("thorax", "pelvis", "l_shoulder", "r_shoulder", "l_hip", "r_hip")
+
+
 def keypoint_start(model: Any, joints: np.ndarray, sequence_path: Any, first: int):
     """Start pose from the joints triangulated from the keypoints: the IK fit of frame 0's joints (a joint
-    missing there is taken from the nearest frame that has it); no IK floor without ground truth."""
+    missing there is taken from the nearest frame that has it, :func:`fill_gaps`; a limb joint that no
+    nearby frame gives plausibly is left to the search, its limb starting at rest); no IK floor without
+    ground truth."""
     from swarmpose.body.ik import fit_ik
 
     start = fill_gaps(joints, 0)
-    if not np.isfinite(start).all():
-        missing = [JOINTS15[j] for j in np.flatnonzero(~np.isfinite(start).all(axis=1))]
+    missing = [JOINTS15[j] for j in np.flatnonzero(~np.isfinite(start).all(axis=1))]
+    if any(name in TRUNK_JOINTS for name in missing):
         raise DataError(f"{sequence_path}: too few views see {', '.join(missing)} around frame {first} to "
                         "triangulate the start pose; import from a later frame (`swarmpose import --start`) or track with more cameras")
-    ik = fit_ik(model, start[None])
+    ik = fit_ik(model, start[None], missing=True)
     T = len(joints)
     params = np.full((T, model.n_params), np.nan)
     params[0] = ik.params[0]

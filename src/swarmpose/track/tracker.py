@@ -259,7 +259,8 @@ class TrackSetup:
 
 def _subject_for(seq: Any, spec, config: TrackConfig | None = None, keypoints: np.ndarray | None = None) -> Subject:
     """The subject: the file ``config`` names; else, for a sequence without ground truth, limbs measured from
-    the joints triangulated from its ``keypoints`` (medians over frames), with cones from the stature
+    the joints triangulated from its ``keypoints`` (medians over frames; each arm's length split by Winter's
+    proportion, :func:`~swarmpose.body.anthropometry.split_arms`), with cones from the stature
     ``config`` names when it names one; else the stature alone; else from the source BVH skeleton when there
     is one, else from the 15-joint ground truth.
 
@@ -270,9 +271,11 @@ def _subject_for(seq: Any, spec, config: TrackConfig | None = None, keypoints: n
     if config is not None and config.subject:
         return Subject.load(config.subject)
     if keypoints is not None and seq.gt_joints is None:
-        subj = subject_from_joints(spec, keypoints, name=str(getattr(seq, "path", "subject")),
-                                   measurements=getattr(seq, "subject_measurements", None), robust=True,
-                                   source="joints triangulated from the detector's keypoints, medians")
+        from swarmpose.body.anthropometry import split_arms
+
+        subj = split_arms(subject_from_joints(spec, keypoints, name=str(getattr(seq, "path", "subject")),
+                                              measurements=getattr(seq, "subject_measurements", None), robust=True,
+                                              source="joints triangulated from the detector's keypoints, medians"))
         if config is not None and config.height_mm is not None:
             from dataclasses import replace
 
