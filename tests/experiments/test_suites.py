@@ -142,3 +142,18 @@ def test_a_boolean_fitness_option_that_is_not_a_boolean_is_refused(text):
 def test_malformed_variants_are_refused_with_the_expected_form(model, variant, message):
     with pytest.raises(ConfigError, match=message):
         apply_variant(optim.get("sppso", model=model, fps=20.0), variant)
+
+
+def test_refined_recovery_variants(model):
+    """recovery=off drops the loss detection; recovery=T moves its threshold and keeps the rest of it."""
+    base = optim.get("refined", model=model, fps=20.0)
+    assert dict(apply_variant(base, "recovery=off").recovery) == {}
+    low = apply_variant(base, "recovery=0.01+refine=50")
+    assert low.recovery["threshold"] == 0.01 and low.refine_budget == 50
+    assert {k: v for k, v in low.recovery.items() if k != "threshold"} == {
+        k: v for k, v in base.recovery.items() if k != "threshold"}
+    for bad in ("recovery=1.5", "recovery=x", "recovery=0"):
+        with pytest.raises(ConfigError, match="recovery=T"):
+            apply_variant(base, bad)
+    with pytest.raises(ConfigError, match="has no limb recovery"):
+        apply_variant(apply_variant(base, "recovery=off"), "recovery=0.01")

@@ -49,9 +49,13 @@ def walk(model, n: int) -> np.ndarray:
     return P
 
 
-def _image(model, pose, cam, rng) -> np.ndarray:
+def _background() -> np.ndarray:
     yy, xx = np.mgrid[0:H, 0:W]
-    bg = 150 + 40 * np.sin(xx / 9.0) * np.cos(yy / 13.0)
+    return 150 + 40 * np.sin(xx / 9.0) * np.cos(yy / 13.0)
+
+
+def _image(model, pose, cam, rng) -> np.ndarray:
+    bg = _background()
     sil = render_silhouette(model, pose, cam).astype(bool)
     img = np.where(sil, 70.0, bg) + rng.normal(0, 4, (H, W))
     return np.clip(img, 0, 255).astype(np.uint8)
@@ -71,7 +75,8 @@ def build_results(root: Path, *, runs: int = 2, invalid: tuple[int, ...] = ()) -
     w = SequenceWriter(seq_dir, cams, SEQ_FPS, N_SEQ, streams=("image",))
     for k in range(N_SEQ):
         w.write_frame(k, image=np.stack([_image(model, gt_params[k], c, rng) for c in cams]))
-    w.finish(gt_joints=gt, frame_times=np.arange(N_SEQ) / SEQ_FPS)
+    w.finish(gt_joints=gt, frame_times=np.arange(N_SEQ) / SEQ_FPS,
+             backgrounds=np.stack([np.clip(_background(), 0, 255).astype(np.uint8)] * len(cams)))
 
     res = root / "results"
     res.mkdir()

@@ -51,10 +51,28 @@ def test_make_report_writes_everything(results_copy: Path):
     # the page: every figure, overlay and the video embedded: the one file to send
     assert paths.html == rep / "summary.html"
     page = paths.html.read_text()
-    assert page.count('<img src="data:image/') == len(paths.figures) + len(paths.overlays) + 1
+    assert page.count('<img src="data:image/') == len(paths.figures) + len(paths.overlays) + 2  # + the confidence
     gif = base64.b64encode(paths.video.read_bytes()).decode("ascii")
     assert f'<img src="data:image/gif;base64,{gif}"' in page
     assert 'href="overlay_run000.gif"' not in page and "<h2>Error per joint</h2>" in page
+
+
+def test_the_report_gives_each_limbs_confidence(results_copy: Path):
+    """Run 1's right arm is lost in frame 3 (its shoulder turned by 1.5 rad; every parameter of the fake runs has
+    0.05 rad of noise besides): the report's per-limb confidence is lowest there, and the truth's lost frames
+    stand beside it."""
+    paths = make_report(results_copy, overlay_frames=1, run=1)
+    rep = results_copy / "report"
+    with np.load(rep / "limb_confidence.npz") as z:
+        limbs, conf, lost, d = list(z["limbs"]), z["confidence"], z["lost"], z["disagreement"]
+        assert d.shape == conf.shape == (len(z["frame_indices"]), 4)
+    arm = limbs.index("right_arm")
+    assert lost[3, arm] and conf[3, arm] < 0.01 and conf[3, arm] == conf.min()
+    assert d[3, arm] > 10 * np.delete(d.ravel(), 3 * 4 + arm).max()  # the arm is far outside every silhouette
+    md = paths.summary.read_text()
+    assert "## Per-limb confidence" in md and "![per-limb confidence](limb_confidence.png)" in md
+    assert "| right arm | " in md and "frames lost (truth)" in md
+    assert (rep / "limb_confidence.png").stat().st_size > 1000
 
 
 def test_a_second_report_keeps_what_it_does_not_replace(results_copy: Path):

@@ -23,7 +23,8 @@ def apply_variant(config: Any, variant: str) -> Any:
       Deutscher & Reid's APF with 700 × 5).
     * ``spread=K``: the search's per-parameter sigma times K.
     * ``refine=B`` (refined configurations): B pattern-search evaluations (0: none); ``recovery=off``: no
-      loss detection; several variants are joined by ``+`` (``apf=200x5+refine=0``).
+      loss detection; ``recovery=T``: a limb counts as lost above a disagreement of T (default 0.05; the
+      search per lost limb unchanged); several variants are joined by ``+`` (``apf=200x5+refine=0``).
     """
     if not variant:
         return config
@@ -40,9 +41,17 @@ def apply_variant(config: Any, variant: str) -> Any:
             if not value.isdigit():
                 raise ConfigError(f"variant {variant!r}: expected refine=B, a whole number of evaluations")
             return dataclasses.replace(config, refine_budget=int(value))
-        if value != "off":
-            raise ConfigError(f"variant {variant!r}: expected recovery=off")
-        return dataclasses.replace(config, recovery={})
+        if value == "off":
+            return dataclasses.replace(config, recovery={})
+        try:
+            threshold = float(value)
+        except ValueError:
+            threshold = float("nan")
+        if not 0.0 < threshold < 1.0 or not config.recovery:
+            raise ConfigError(f"variant {variant!r}: expected recovery=off or recovery=T with 0 < T < 1 (the "
+                              f"disagreement above which a limb is lost; {config.name!r} "
+                              f"{'has' if config.recovery else 'has no'} limb recovery)")
+        return dataclasses.replace(config, recovery={**dict(config.recovery), "threshold": threshold})
     if hasattr(config, "base") and hasattr(config, "refine_budget"):
         return dataclasses.replace(config, base=apply_variant(config.base, variant))
     if head == "spread":

@@ -189,8 +189,14 @@ def make_report(
             if size > limit:
                 notes.append(f"{vid.name} is {size / 1e6:.1f} MB, more than the {limit / 1e6:.1f} MB that "
                              "summary.html embeds: the page links it, so send the video with the page")
+    confidence: list[str] = []
+    if images_missing is None and (overlay_frames > 0 or video):
+        from swarmpose.report.confidence import confidence_section
+
+        confidence = confidence_section(res, out, run=run, sequence=sequence)
     if truth:
-        summary = write_summary(res, out=out / "summary.md", figures=figures, overlays=over, video=vid, notes=notes)
+        summary = write_summary(res, out=out / "summary.md", figures=figures, overlays=over, video=vid, notes=notes,
+                                sections=confidence)
     else:
         from swarmpose.report.without_truth import heldout_section, write_summary_without_truth
 
@@ -198,6 +204,6 @@ def make_report(
         if images_missing is None:
             _, heldout = heldout_section(res, out, run=run)
         summary = write_summary_without_truth(res, out / "summary.md", figures=figures, overlays=over,
-                                              heldout=heldout, notes=notes)
+                                              heldout=heldout + confidence, notes=notes)
     page = write_html(summary)
     return ReportPaths(summary=summary, html=page, figures=figures, overlays=over, video=vid, notes=notes)

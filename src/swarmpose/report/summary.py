@@ -114,6 +114,7 @@ def write_summary(
     overlays: Sequence[str | os.PathLike[str]] | None = None,
     video: str | os.PathLike[str] | None = None,
     notes: Sequence[str] = (),
+    sections: Sequence[str] = (),
 ) -> Path:
     """Write ``summary.md``: configuration, error table, per-joint table, figures and versions.
 
@@ -133,6 +134,8 @@ def write_summary(
         An overlay video to link.
     notes : sequence of str
         Extra remarks (e.g. why overlays were skipped), listed under the title.
+    sections : sequence of str
+        Further Markdown lines placed after the per-joint table (the per-limb confidence).
 
     Returns
     -------
@@ -258,6 +261,7 @@ def write_summary(
     for f in figures:
         if not Path(f).name.startswith("error_over_time"):
             L += [f"![{Path(f).stem.replace('_', ' ')}]({_rel(Path(f), base)})", ""]
+    L += list(sections)
 
     # ---------------------------------------------------------------- overlays
     if overlays or video:
