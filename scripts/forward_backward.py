@@ -34,7 +34,7 @@ def track(clip: str, algo: str, runs: int, fps: float, backward: bool) -> dict:
     return {"d_mean_mm": summary["d_mean_mm"], "runs_d_mean_mm": [r["d_mean"] for r in per_run],
             "d_max_mm": max(r["d_max"] for r in per_run), "mmta": summary["mmta"],
             "frames_per_s": summary["frames_per_s"], "frames": summary["frames"],
-            "backward_kept": None if None in kept else sum(kept) / (runs * (summary["frames"] - 1))}
+            "backward_kept": None if None in kept else sum(kept) / (runs * summary["frames"])}
 
 
 def main() -> None:

@@ -30,22 +30,21 @@ def test_the_forward_pass_is_the_plain_track_and_each_frame_keeps_the_pose_the_f
     assert np.array_equal(passes["forward_params"], fwd.params)  # the same forward pass, same stream
     assert np.array_equal(passes["forward_scores"], fwd.scores)
     kept = passes["backward_kept"]
-    assert kept.shape == (T,) and not kept[-1]  # both passes start from the forward pass's last pose
+    assert kept.shape == (T,)
     assert np.array_equal(both.params[~kept], fwd.params[~kept])
-    assert np.array_equal(both.params[-1], fwd.params[-1])
     # per frame, the kept pose scores at least as well as the forward pass's under the refinement's options
     setup = prepare_track(short_sequence, TrackConfig(algo="refined", seed=3, backward=True), out / "b")
     fit = make_fitness("silhouette_edge", setup.model)
     options = dict(setup.config.optimizer(setup.model).refine_options) or None
     with open_sequence(short_sequence) as seq:
-        for i in range(T - 1):
+        for i in range(T):  # the last frame too: the forward pass's pose or the fresh search's
             fit.bind(frame_observation(seq, int(setup.frame_indices[i]), "silhouette_edge", 1, seq.backgrounds()))
             s = fit.evaluate(np.stack([fwd.params[i], both.params[i]]), options)
             assert s[1] >= s[0]
             assert both.scores[i] == pytest.approx(s[1])
-    # the cost of both passes, per frame (the last frame is tracked once)
-    assert np.all(both.evaluations[:-1] > fwd.evaluations[:-1])
-    assert both.evaluations[-1] == fwd.evaluations[-1]
+    # the cost of both passes, per frame (the last frame: the fresh search over every heading and its rounds)
+    assert np.all(both.evaluations > fwd.evaluations)
+    assert both.evaluations[-1] > fwd.evaluations[-1] + 7 * 1000
     assert both.errors["backward_kept"] == int(kept.sum())
 
 
@@ -80,3 +79,41 @@ def test_the_backward_setting_names_its_folder():
     from swarmpose.cli.track_commands import default_results_name
 
     assert default_results_name("walk", TrackConfig(algo="refined", backward=True)) == "walk-refined-20fps-backward"
+
+
+def test_a_forward_pass_that_ends_lost_does_not_start_the_backward_pass_lost(short_sequence):
+    """The forward pass's last pose turned round and its arms thrown up: the fresh wide search of the last frame
+    scores better, is kept there, and the backward pass goes on from it (the other frames keep good poses)."""
+    from swarmpose.body.priors import HardPriors
+    from swarmpose.io.sequence import open_sequence
+    from swarmpose.track.motion import parse_motion
+    from swarmpose.track.observation import frame_observation
+    from swarmpose.track.recovery import Recovery
+    from swarmpose.track.step import FrameSearch, backward_pass
+    from swarmpose.track.timing import PartTimer
+    from swarmpose.track.tracker import _make_fitness
+
+    setup = prepare_track(short_sequence, TrackConfig(algo="refined", seed=3), None)
+    model = setup.model
+    algo = setup.config.optimizer(model)
+    motion = parse_motion(setup.config.motion)
+    fit = _make_fitness(setup)
+    search = FrameSearch(model=model, algo=algo, fitness=fit, motion=motion, motion_mask=motion.mask(model),
+                         constraint=HardPriors(model).valid, timer=PartTimer(), extra_options={},
+                         recovery=Recovery.from_settings(algo.recovery))
+    forward = np.array(setup.ik_params, dtype=np.float64)  # the truth's IK fit, its last pose spoilt
+    T = len(forward)
+    forward[-1, model.param_index("pelvis_rz")] += np.pi
+    for name in ("l_shoulder_abd", "r_shoulder_abd"):
+        forward[-1, model.param_index(name)] = model.upper[model.param_index(name)]
+    with open_sequence(short_sequence) as seq:
+        bgs = seq.backgrounds()
+
+        def observe(i: int) -> None:
+            fit.bind(frame_observation(seq, int(setup.frame_indices[i]), "silhouette_edge", 1, bgs))
+
+        out = backward_pass(search, forward, observe, np.random.default_rng(0))
+    d = np.linalg.norm(model.joints15(out.params) - setup.gt_joints, axis=-1).mean(axis=1)
+    d_spoilt = np.linalg.norm(model.joints15(forward[-1:])[0] - setup.gt_joints[-1], axis=-1).mean()
+    assert out.backward[-1] and d[-1] < 60.0 < 200.0 < d_spoilt
+    assert d.max() < 60.0 and out.evaluations[-1] > 7 * 1000

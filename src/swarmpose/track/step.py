@@ -6,10 +6,12 @@ fitness: the motion model's prediction (and the carried particle set moved with 
 rounds from the best), the loss detection and re-search of :mod:`swarmpose.track.recovery`, and the per-frame
 keypoint IK of the configurations that ask for it.
 
-:func:`backward_pass` tracks a run's frames again from the last one to the first, started from the forward
-pass's last pose, and keeps per frame the better of the two passes' poses by the fitness (both scored with the
-same options); the backward pass goes on from the pose kept, so a frame where the forward pass was right
-restarts it. Losses are local in time and mostly not shared by the two directions
+:func:`backward_pass` tracks a run's frames again from the last one to the first and keeps per frame the better
+of the two passes' poses by the fitness (both scored with the same options); the backward pass goes on from the
+pose kept, so a frame where the forward pass was right restarts it. It starts at the last frame from the
+better of the forward pass's last pose and a fresh wide search there (a standing pose at the forward pass's
+pelvis, turned to every heading, as a start from the silhouettes): a clip whose forward pass ends lost does
+not start the backward pass lost. Losses are local in time and mostly not shared by the two directions
 (``shared/reference/forward-backward.md``), so the pass repairs the frames one direction lost.
 """
 
@@ -17,13 +19,15 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
 from swarmpose.track.recovery import LIMBS
-from swarmpose.track.start import START_ROUNDS, START_SEARCHES, fill_gaps, heading_candidates, keypoint_ik
+from swarmpose.joints import JOINT_INDEX
+from swarmpose.track.start import (START_ROUNDS, START_SEARCHES, fill_gaps, heading_candidates, keypoint_ik,
+                                   silhouette_start)
 
 __all__ = ["FrameSearch", "StepResult", "recentre", "backward_pass", "BackwardResult"]
 
@@ -146,8 +150,8 @@ class BackwardResult:
 
     Attributes
     ----------
-    params : (T, D) the kept poses; scores : (T,) their scores (``choice_options``; NaN at the last frame).
-    backward : (T,) bool -- the backward pass's pose was kept (the last frame: False, both passes start there).
+    params : (T, D) the kept poses; scores : (T,) their scores (``choice_options``).
+    backward : (T,) bool -- the backward pass's pose was kept (the last frame: the fresh search's pose was).
     evaluations : (T,) int and seconds : (T,) -- of the backward pass, per frame.
     recovered : (T, limbs) bool -- limbs the backward pass found lost and searched again with success.
     """
@@ -162,7 +166,8 @@ class BackwardResult:
 
 def backward_pass(search: FrameSearch, forward: np.ndarray, observe: Callable[[int], Any],
                   rng: np.random.Generator, progress: Callable[[int, int], None] | None = None) -> BackwardResult:
-    """Track positions ``T - 2 .. 0`` backwards from the forward pass's last pose (module docstring).
+    """Track positions ``T - 2 .. 0`` backwards, from the better of the forward pass's last pose and a fresh
+    wide search of the last frame (module docstring).
 
     ``forward (T, D)`` are the forward pass's poses; ``observe(i)`` binds position ``i``'s observation to
     ``search.fitness``; ``progress(done, T - 1)`` after each frame.
@@ -178,9 +183,27 @@ def backward_pass(search: FrameSearch, forward: np.ndarray, observe: Callable[[i
     recovered = np.zeros((T, len(limb_names)), dtype=bool)
     if T < 2:
         return BackwardResult(params, scores, backward, evals, seconds, recovered)
-    x_prev = params[T - 1].copy()
-    carry = None
     options = search.choice_options
+    t0 = time.perf_counter()
+    observe(T - 1)
+    last = params[T - 1]
+    pelvis = model.joints15(last[None])[0][JOINT_INDEX["pelvis"]]
+    x0 = silhouette_start(model, pelvis)
+    wide = replace(search, search_start=True)
+    res = wide.step(T - 1, x0[None], x0, None, rng, first=True)
+    pair = np.nan_to_num(np.asarray(search.fitness.evaluate(np.stack([last, res.x]), options), dtype=np.float64),
+                         nan=-np.inf)
+    evals[T - 1] = res.evaluations + 2
+    carry = res.carry
+    if pair[1] > pair[0]:
+        params[T - 1], scores[T - 1], backward[T - 1] = res.x, pair[1], True
+        for limb in res.recovered:
+            recovered[T - 1, limb_names.index(limb)] = True
+    else:
+        scores[T - 1] = pair[0]
+        carry = None  # the forward pass's pose: no particle set of its own to carry
+    seconds[T - 1] = time.perf_counter() - t0
+    x_prev = params[T - 1].copy()
     for done, i in enumerate(range(T - 2, -1, -1), start=1):
         t0 = time.perf_counter()
         observe(i)

@@ -674,11 +674,11 @@ def run_tracker(
         passes = None
         if cfg.backward and stop_after is None and np.count_nonzero(evals) == T and T > 1:
             prefetch.close()
-            back = Prefetcher(lambda j: load(T - 2 - j), T - 1)
+            back = Prefetcher(lambda j: load(T - 1 - j), T)
 
             def bind(j: int) -> None:
                 with timer.part("features"):
-                    obs = back.get(T - 2 - j)
+                    obs = back.get(T - 1 - j)
                 fitness.bind(obs if observe is None else observe(int(setup.frame_indices[j]), obs))
 
             try:
