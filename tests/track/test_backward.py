@@ -30,8 +30,9 @@ def test_the_forward_pass_is_the_plain_track_and_each_frame_keeps_the_pose_the_f
     assert np.array_equal(passes["forward_params"], fwd.params)  # the same forward pass, same stream
     assert np.array_equal(passes["forward_scores"], fwd.scores)
     kept = passes["backward_kept"]
-    assert kept.shape == (T,)
-    assert np.array_equal(both.params[~kept], fwd.params[~kept])
+    mixed = passes["backward_mixed"]
+    assert kept.shape == mixed.shape == (T,) and not (kept & mixed).any()
+    assert np.array_equal(both.params[~kept & ~mixed], fwd.params[~kept & ~mixed])
     # per frame, the kept pose scores at least as well as the forward pass's under the refinement's options
     setup = prepare_track(short_sequence, TrackConfig(algo="refined", seed=3, backward=True), out / "b")
     fit = make_fitness("silhouette_edge", setup.model)
@@ -45,7 +46,7 @@ def test_the_forward_pass_is_the_plain_track_and_each_frame_keeps_the_pose_the_f
     # the cost of both passes, per frame (the last frame: the fresh search over every heading and its rounds)
     assert np.all(both.evaluations > fwd.evaluations)
     assert both.evaluations[-1] > fwd.evaluations[-1] + 7 * 1000
-    assert both.errors["backward_kept"] == int(kept.sum())
+    assert both.errors["backward_kept"] == int(kept.sum()) and both.errors["backward_mixed"] == int(mixed.sum())
 
 
 def test_the_results_folder_keeps_both_passes(tracked):
@@ -102,7 +103,6 @@ def test_a_forward_pass_that_ends_lost_does_not_start_the_backward_pass_lost(sho
                          constraint=HardPriors(model).valid, timer=PartTimer(), extra_options={},
                          recovery=Recovery.from_settings(algo.recovery))
     forward = np.array(setup.ik_params, dtype=np.float64)  # the truth's IK fit, its last pose spoilt
-    T = len(forward)
     forward[-1, model.param_index("pelvis_rz")] += np.pi
     for name in ("l_shoulder_abd", "r_shoulder_abd"):
         forward[-1, model.param_index(name)] = model.upper[model.param_index(name)]
@@ -117,3 +117,32 @@ def test_a_forward_pass_that_ends_lost_does_not_start_the_backward_pass_lost(sho
     d_spoilt = np.linalg.norm(model.joints15(forward[-1:])[0] - setup.gt_joints[-1], axis=-1).mean()
     assert out.backward[-1] and d[-1] < 60.0 < 200.0 < d_spoilt
     assert d.max() < 60.0 and out.evaluations[-1] > 7 * 1000
+
+
+def test_mix_limbs_takes_each_limb_from_the_pass_that_has_it(short_sequence):
+    """Two poses of one frame, each with a different arm thrown out of the silhouettes: the mix keeps the good arm
+    of each, scores higher than both, and says which parameters came from the second pose."""
+    from swarmpose.body.priors import HardPriors
+    from swarmpose.io.sequence import open_sequence
+    from swarmpose.track.observation import frame_observation
+    from swarmpose.track.step import mix_limbs
+    from swarmpose.track.tracker import _make_fitness
+
+    setup = prepare_track(short_sequence, TrackConfig(algo="refined", seed=3), None)
+    model = setup.model
+    fit = _make_fitness(setup)
+    with open_sequence(short_sequence) as seq:
+        fit.bind(frame_observation(seq, int(setup.frame_indices[1]), "silhouette_edge", 1, seq.backgrounds()))
+    truth = np.array(setup.ik_params[1], dtype=np.float64)
+    a, b = truth.copy(), truth.copy()
+    a[model.param_index("l_shoulder_abd")] = model.upper[model.param_index("l_shoulder_abd")]
+    b[model.param_index("r_shoulder_flex")] += 1.4
+    x, score, from_b = mix_limbs(fit, model, a, b, None, HardPriors(model).valid)
+    left, right = model.group("left_arm"), model.group("right_arm")
+    assert np.array_equal(x[left], b[left]) and np.array_equal(x[right], a[right])
+    assert np.allclose(x, truth)
+    assert from_b[left].all() and not from_b[right].any()
+    pair = fit.evaluate(np.stack([a, b]))
+    assert score == pytest.approx(float(fit.evaluate(x[None])[0])) and score > pair.max()
+    same, s2, none = mix_limbs(fit, model, truth, truth, None)
+    assert np.array_equal(same, truth) and not none.any()

@@ -8,7 +8,9 @@ keypoint IK of the configurations that ask for it.
 
 :func:`backward_pass` tracks a run's frames again from the last one to the first and keeps per frame the better
 of the two passes' poses by the fitness (both scored with the same options); the backward pass goes on from the
-pose kept, so a frame where the forward pass was right restarts it. It starts at the last frame from the
+pose kept, so a frame where the forward pass was right restarts it. Losses are per limb, so the choice is
+too (:func:`mix_limbs`): the better whole pose, with any of its four limbs taken from the other pass where
+that scores higher. It starts at the last frame from the
 better of the forward pass's last pose and a fresh wide search there (a standing pose at the forward pass's
 pelvis, turned to every heading, as a start from the silhouettes): a clip whose forward pass ends lost does
 not start the backward pass lost. Losses are local in time and mostly not shared by the two directions
@@ -24,12 +26,18 @@ from typing import Any
 
 import numpy as np
 
-from swarmpose.track.recovery import LIMBS
 from swarmpose.joints import JOINT_INDEX
-from swarmpose.track.start import (START_ROUNDS, START_SEARCHES, fill_gaps, heading_candidates, keypoint_ik,
-                                   silhouette_start)
+from swarmpose.track.recovery import LIMBS
+from swarmpose.track.start import (
+    START_ROUNDS,
+    START_SEARCHES,
+    fill_gaps,
+    heading_candidates,
+    keypoint_ik,
+    silhouette_start,
+)
 
-__all__ = ["FrameSearch", "StepResult", "recentre", "backward_pass", "BackwardResult"]
+__all__ = ["FrameSearch", "StepResult", "recentre", "backward_pass", "BackwardResult", "mix_limbs"]
 
 
 def recentre(carry: Any, x: np.ndarray, groups: list[np.ndarray], lower: np.ndarray, upper: np.ndarray) -> Any:
@@ -144,6 +152,35 @@ class FrameSearch:
         return opts or None
 
 
+def mix_limbs(fitness: Any, model: Any, a: np.ndarray, b: np.ndarray, options: dict | None,
+              constraint: Callable[[np.ndarray], np.ndarray] | None = None) -> tuple[np.ndarray, float, np.ndarray]:
+    """The best of two poses of one frame, limb by limb: the better-scoring of ``a`` and ``b`` (``a`` on a tie)
+    with each subset of its four limbs (:data:`~swarmpose.track.recovery.LIMBS`' parameter groups) taken from
+    the other, 16 poses scored at once (those ``constraint`` rejects are skipped). Returns the pose, its score
+    and ``(D,)`` bool: the parameters that came from ``b``."""
+    a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
+    pair = np.nan_to_num(np.asarray(fitness.evaluate(np.stack([a, b]), options), dtype=np.float64), nan=-np.inf)
+    base, other = (b, a) if pair[1] > pair[0] else (a, b)
+    groups = [model.group(group) for _, group in LIMBS.values() if group in model.groups]
+    masks = np.zeros((2 ** len(groups), model.n_params), dtype=bool)
+    for k in range(1, len(masks)):
+        for j, g in enumerate(groups):
+            if k >> j & 1:
+                masks[k, g] = True
+    cands = np.where(masks, other[None], base[None])
+    ok = np.ones(len(cands), dtype=bool) if constraint is None else np.asarray(constraint(cands), dtype=bool)
+    ok[0] = True  # the better whole pose is always a candidate
+    scores = np.full(len(cands), -np.inf)
+    scores[0] = pair.max()
+    rest = np.flatnonzero(ok[1:]) + 1
+    if rest.size:
+        scores[rest] = np.nan_to_num(np.asarray(fitness.evaluate(cands[rest], options), dtype=np.float64),
+                                     nan=-np.inf)
+    k = int(np.argmax(scores))
+    from_b = masks[k] if base is a else ~masks[k]
+    return cands[k].copy(), float(scores[k]), from_b
+
+
 @dataclass
 class BackwardResult:
     """The poses kept per frame after the backward pass, and what it cost.
@@ -154,6 +191,7 @@ class BackwardResult:
     backward : (T,) bool -- the backward pass's pose was kept (the last frame: the fresh search's pose was).
     evaluations : (T,) int and seconds : (T,) -- of the backward pass, per frame.
     recovered : (T, limbs) bool -- limbs the backward pass found lost and searched again with success.
+    mixed : (T,) bool -- the pose kept has limbs of both passes (:func:`mix_limbs`).
     """
 
     params: np.ndarray
@@ -162,6 +200,7 @@ class BackwardResult:
     evaluations: np.ndarray
     seconds: np.ndarray
     recovered: np.ndarray
+    mixed: np.ndarray
 
 
 def backward_pass(search: FrameSearch, forward: np.ndarray, observe: Callable[[int], Any],
@@ -181,8 +220,9 @@ def backward_pass(search: FrameSearch, forward: np.ndarray, observe: Callable[[i
     evals = np.zeros(T, dtype=np.int64)
     seconds = np.zeros(T)
     recovered = np.zeros((T, len(limb_names)), dtype=bool)
+    mixed = np.zeros(T, dtype=bool)
     if T < 2:
-        return BackwardResult(params, scores, backward, evals, seconds, recovered)
+        return BackwardResult(params, scores, backward, evals, seconds, recovered, mixed)
     options = search.choice_options
     t0 = time.perf_counter()
     observe(T - 1)
@@ -210,19 +250,21 @@ def backward_pass(search: FrameSearch, forward: np.ndarray, observe: Callable[[i
         # the last two poses kept, oldest first (params holds the kept poses from i + 1 on)
         history = params[[i + 2, i + 1]] if i + 2 < T else x_prev[None]
         res = search.step(i, history, x_prev, carry, rng)
-        pair = search.fitness.evaluate(np.stack([params[i], res.x]), options)
-        pair = np.nan_to_num(np.asarray(pair, dtype=np.float64), nan=-np.inf)
-        evals[i] = res.evaluations + 2
+        x, scores[i], from_back = mix_limbs(search.fitness, model, params[i], res.x, options, search.constraint)
+        evals[i] = res.evaluations + 18
         carry = res.carry
-        if pair[1] > pair[0]:
-            x_prev, scores[i], backward[i] = res.x, pair[1], True
+        if from_back.all():
+            backward[i] = True
             for limb in res.recovered:
                 recovered[i, limb_names.index(limb)] = True
+        elif from_back.any():  # limbs of both passes: go on from the mix
+            mixed[i] = True
+            carry = recentre(carry, x, [np.flatnonzero(~from_back)], model.lower, model.upper)
         else:  # the forward pass's pose is better: go on from it
-            x_prev, scores[i] = params[i].copy(), pair[0]
-            carry = recentre(carry, x_prev, [np.arange(D)], model.lower, model.upper)
+            carry = recentre(carry, x, [np.arange(D)], model.lower, model.upper)
+        x_prev = x
         params[i] = x_prev
         seconds[i] = time.perf_counter() - t0
         if progress is not None:
             progress(done, T - 1)
-    return BackwardResult(params, scores, backward, evals, seconds, recovered)
+    return BackwardResult(params, scores, backward, evals, seconds, recovered, mixed)

@@ -535,7 +535,8 @@ class RunResult:
     recovered: np.ndarray | None = None  # (T, limbs) bool: frames where a lost limb was searched again and kept
     part_seconds: dict[str, float] = field(default_factory=dict)  # this session's wall time per part (timing.PARTS)
     passes: dict[str, np.ndarray] | None = None  # with the backward pass: the forward pass's poses and scores, and
-    #                                              which frames kept the backward pass's pose (backward_kept);
+    #                                              which frames kept the backward pass's pose (backward_kept)
+    #                                              or limbs of both passes (backward_mixed);
     #                                              with smoothing: the poses before it (raw_params)
 
     @property
@@ -686,7 +687,8 @@ def run_tracker(
                                   None if progress is None else lambda d, _n: progress(T + d, setup.progress_frames))
             finally:
                 back.close()
-            passes = {"forward_params": params, "forward_scores": scores, "backward_kept": b.backward}
+            passes = {"forward_params": params, "forward_scores": scores, "backward_kept": b.backward,
+                      "backward_mixed": b.mixed}
             params, scores = b.params, np.where(np.isnan(b.scores), scores, b.scores)
             evals, seconds, recovered = evals + b.evaluations, seconds + b.seconds, recovered | b.recovered
     finally:
@@ -718,6 +720,7 @@ def run_tracker(
                                                    if setup.has_ground_truth else None)}
         if passes is not None and "backward_kept" in passes:
             result.errors["backward_kept"] = int(passes["backward_kept"].sum())
+            result.errors["backward_mixed"] = int(passes["backward_mixed"].sum())
         if run_dir is not None:
             _write_run(run_dir, setup, result, d_all)
     return result
