@@ -8,13 +8,13 @@ keypoint IK of the configurations that ask for it.
 
 :func:`backward_pass` tracks a run's frames again from the last one to the first and keeps per frame the better
 of the two passes' poses by the fitness (both scored with the same options); the backward pass goes on from the
-pose kept, so a frame where the forward pass was right restarts it. Losses are per limb, so the choice is
-too (:func:`mix_limbs`): the better whole pose, with any of its four limbs taken from the other pass where
-that scores higher. It starts at the last frame from the
-better of the forward pass's last pose and a fresh wide search there (a standing pose at the forward pass's
-pelvis, turned to every heading, as a start from the silhouettes): a clip whose forward pass ends lost does
-not start the backward pass lost. Losses are local in time and mostly not shared by the two directions
-(``shared/reference/forward-backward.md``), so the pass repairs the frames one direction lost.
+pose kept, so a frame where the forward pass was right restarts it. Losses are local in time and mostly not
+shared by the two directions (``shared/reference/forward-backward.md``), so the pass repairs the frames one
+direction lost. They are also per limb, so the choice is too (:func:`mix_limbs`): the better whole pose, with
+any of its four limbs taken from the other pass where that scores higher. The pass starts at the last frame
+from the better of the forward pass's last pose and a fresh wide search there (a standing pose at the forward
+pass's pelvis, turned to every heading, as a start from the silhouettes): a clip whose forward pass ends lost
+does not start the backward pass lost.
 """
 
 from __future__ import annotations
@@ -231,16 +231,18 @@ def backward_pass(search: FrameSearch, forward: np.ndarray, observe: Callable[[i
     x0 = silhouette_start(model, pelvis)
     wide = replace(search, search_start=True)
     res = wide.step(T - 1, x0[None], x0, None, rng, first=True)
-    pair = np.nan_to_num(np.asarray(search.fitness.evaluate(np.stack([last, res.x]), options), dtype=np.float64),
-                         nan=-np.inf)
-    evals[T - 1] = res.evaluations + 2
+    params[T - 1], scores[T - 1], from_fresh = mix_limbs(search.fitness, model, last, res.x, options,
+                                                         search.constraint)
+    evals[T - 1] = res.evaluations + 18
     carry = res.carry
-    if pair[1] > pair[0]:
-        params[T - 1], scores[T - 1], backward[T - 1] = res.x, pair[1], True
+    if from_fresh.all():
+        backward[T - 1] = True
         for limb in res.recovered:
             recovered[T - 1, limb_names.index(limb)] = True
+    elif from_fresh.any():
+        mixed[T - 1] = True
+        carry = recentre(carry, params[T - 1], [np.flatnonzero(~from_fresh)], model.lower, model.upper)
     else:
-        scores[T - 1] = pair[0]
         carry = None  # the forward pass's pose: no particle set of its own to carry
     seconds[T - 1] = time.perf_counter() - t0
     x_prev = params[T - 1].copy()
