@@ -11,10 +11,9 @@ import numpy as np
 from swarmpose.report._style import SIDE_RGB, rgb01
 from swarmpose.report.results import Results
 from swarmpose.track.confidence import LIMB_JOINTS, LOST_MM, limb_confidence, limb_lost, track_disagreement
+from swarmpose.track.observation import IMAGE_FITNESS
 
 __all__ = ["run_confidence", "confidence_section"]
-
-IMAGE_FITNESS_KINDS = ("silhouette_edge", "silhouette", "edge")
 
 
 def run_confidence(res: Results, run: int = 0, sequence: Any = None) -> dict[str, np.ndarray] | None:
@@ -28,7 +27,7 @@ def run_confidence(res: Results, run: int = 0, sequence: Any = None) -> dict[str
 
     cfg = res.config
     kind = cfg.get("fitness_kind") or cfg.get("fitness")
-    if kind not in IMAGE_FITNESS_KINDS:
+    if kind not in IMAGE_FITNESS:
         return None
     r = res.run(run)
     model = res.model

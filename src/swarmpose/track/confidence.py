@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from swarmpose.joints import JOINT_INDEX
-from swarmpose.track.recovery import LIMBS
+from swarmpose.track.recovery import Recovery
 
 __all__ = ["LOST_MM", "COEFFICIENTS", "LIMB_JOINTS", "limb_confidence", "limb_lost", "limb_disagreement",
            "track_disagreement"]
@@ -64,9 +64,7 @@ def limb_lost(joints: np.ndarray, truth: np.ndarray, limbs: Sequence[str] = tupl
 def limb_disagreement(fitness: Any, model: Any, x: np.ndarray) -> dict[str, float]:
     """Limb -> the silhouette disagreement of pose ``x (D,)`` with the bound frame (worst cone of the limb)."""
     parts = fitness.part_agreement(np.asarray(x, dtype=np.float64)[None])[0]
-    names = model.cone_arrays.names
-    return {limb: float(max(parts[names.index(c)] for c in cones)) for limb, (cones, _) in LIMBS.items()
-            if all(c in names for c in cones)}
+    return {limb: float(parts[cones].max()) for limb, (cones, _) in Recovery().limbs(model).items()}
 
 
 def track_disagreement(fitness: Any, model: Any, params: np.ndarray, observations: Any,

@@ -156,7 +156,7 @@ def mix_limbs(fitness: Any, model: Any, a: np.ndarray, b: np.ndarray, options: d
               constraint: Callable[[np.ndarray], np.ndarray] | None = None) -> tuple[np.ndarray, float, np.ndarray]:
     """The best of two poses of one frame, limb by limb: the better-scoring of ``a`` and ``b`` (``a`` on a tie)
     with each subset of its four limbs (:data:`~swarmpose.track.recovery.LIMBS`' parameter groups) taken from
-    the other, 16 poses scored at once (those ``constraint`` rejects are skipped). Returns the pose, its score
+    the other: the two poses, then the 15 mixes scored at once (those ``constraint`` rejects are skipped). Returns the pose, its score
     and ``(D,)`` bool: the parameters that came from ``b``."""
     a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
     pair = np.nan_to_num(np.asarray(fitness.evaluate(np.stack([a, b]), options), dtype=np.float64), nan=-np.inf)
@@ -230,20 +230,25 @@ def backward_pass(search: FrameSearch, forward: np.ndarray, observe: Callable[[i
     pelvis = model.joints15(last[None])[0][JOINT_INDEX["pelvis"]]
     x0 = silhouette_start(model, pelvis)
     wide = replace(search, search_start=True)
+
+    def keep(i: int, res: StepResult, forward_carry: Callable[[Any, np.ndarray], Any]) -> tuple[np.ndarray, Any]:
+        """Position ``i``'s pose, limb by limb from the forward pass's and ``res``'s, and the particle set to
+        carry on with (``forward_carry`` when the forward pass's whole pose is kept)."""
+        x, scores[i], from_back = mix_limbs(search.fitness, model, params[i], res.x, options, search.constraint)
+        evals[i] = res.evaluations + 17  # at most: the two poses, then 15 mixes
+        if from_back.all():
+            backward[i] = True
+            for limb in res.recovered:
+                recovered[i, limb_names.index(limb)] = True
+            return x, res.carry
+        if from_back.any():  # limbs of both passes: go on from the mix
+            mixed[i] = True
+            return x, recentre(res.carry, x, [np.flatnonzero(~from_back)], model.lower, model.upper)
+        return x, forward_carry(res.carry, x)
+
     res = wide.step(T - 1, x0[None], x0, None, rng, first=True)
-    params[T - 1], scores[T - 1], from_fresh = mix_limbs(search.fitness, model, last, res.x, options,
-                                                         search.constraint)
-    evals[T - 1] = res.evaluations + 18
-    carry = res.carry
-    if from_fresh.all():
-        backward[T - 1] = True
-        for limb in res.recovered:
-            recovered[T - 1, limb_names.index(limb)] = True
-    elif from_fresh.any():
-        mixed[T - 1] = True
-        carry = recentre(carry, params[T - 1], [np.flatnonzero(~from_fresh)], model.lower, model.upper)
-    else:
-        carry = None  # the forward pass's pose: no particle set of its own to carry
+    # the forward pass's last pose has no particle set of its own to carry
+    params[T - 1], carry = keep(T - 1, res, lambda _carry, _x: None)
     seconds[T - 1] = time.perf_counter() - t0
     x_prev = params[T - 1].copy()
     for done, i in enumerate(range(T - 2, -1, -1), start=1):
@@ -252,19 +257,7 @@ def backward_pass(search: FrameSearch, forward: np.ndarray, observe: Callable[[i
         # the last two poses kept, oldest first (params holds the kept poses from i + 1 on)
         history = params[[i + 2, i + 1]] if i + 2 < T else x_prev[None]
         res = search.step(i, history, x_prev, carry, rng)
-        x, scores[i], from_back = mix_limbs(search.fitness, model, params[i], res.x, options, search.constraint)
-        evals[i] = res.evaluations + 18
-        carry = res.carry
-        if from_back.all():
-            backward[i] = True
-            for limb in res.recovered:
-                recovered[i, limb_names.index(limb)] = True
-        elif from_back.any():  # limbs of both passes: go on from the mix
-            mixed[i] = True
-            carry = recentre(carry, x, [np.flatnonzero(~from_back)], model.lower, model.upper)
-        else:  # the forward pass's pose is better: go on from it
-            carry = recentre(carry, x, [np.arange(D)], model.lower, model.upper)
-        x_prev = x
+        x_prev, carry = keep(i, res, lambda c, x: recentre(c, x, [np.arange(D)], model.lower, model.upper))
         params[i] = x_prev
         seconds[i] = time.perf_counter() - t0
         if progress is not None:
