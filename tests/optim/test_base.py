@@ -94,6 +94,29 @@ def test_feasibility_bounds_and_constraint_shape_check():
         feasibility(x, lo, hi, lambda p: np.ones(7, bool))
 
 
+def test_feasibility_equals_the_plain_bounds_test_and_asks_only_rows_inside():
+    rng = np.random.default_rng(4)
+    x = rng.uniform(-1.3, 1.3, (200, 5))
+    x[7, 2] = np.nan  # NaN is never inside
+    lo, hi = np.full(5, -1.0), np.array([1.0, 1.0, np.inf, 1.0, 1.0])
+    inside = np.all((x >= lo) & (x <= hi), axis=1)
+    assert feasibility(x, lo, hi, None).tolist() == inside.tolist()
+    asked = []
+
+    def constraint(p):
+        asked.append(p.copy())
+        return p[:, 0] > 0
+
+    got = feasibility(x, lo, hi, constraint)
+    assert got.tolist() == (inside & (x[:, 0] > 0)).tolist()
+    assert len(asked) == 1 and np.array_equal(asked[0], x[inside])
+    asked.clear()
+    assert feasibility(x[inside], lo, hi, constraint).tolist() == (x[inside][:, 0] > 0).tolist()  # all inside
+    assert np.array_equal(asked[0], x[inside])
+    assert feasibility(np.full((3, 5), 5.0), lo, hi, constraint).tolist() == [False] * 3
+    assert len(asked) == 1  # no row inside: the constraint is not asked
+
+
 def test_rng_must_be_a_generator():
     with pytest.raises(TypeError, match="Generator"):
         ConstrictedPSO(np.ones(2), np.ones(2), 3, 3, 0)  # type: ignore[arg-type]

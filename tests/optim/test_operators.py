@@ -36,6 +36,27 @@ def test_constricted_velocity_matches_eq_5_8():
     assert np.allclose(got, 0.7 * (v + 2.1 * e1 * (p - x) + 2.1 * e2 * (g - x)))
 
 
+@pytest.mark.parametrize("seed", range(4))
+def test_constricted_move_equals_the_plain_operators_bit_for_bit(seed):
+    """The compiled move is clamp_velocity(constricted_velocity(...)) and x + v to the last bit, drawing the same
+    random numbers (the optimisers' results must not change), on any subset of rows, NaN and saturation included."""
+    rng = np.random.default_rng(seed)
+    n, d = 9, 31
+    v, x, p = rng.normal(0.0, 3.0, size=(3, n, d))
+    x[2, 4] = np.nan
+    g = rng.normal(size=d)
+    vmax = rng.uniform(0.1, 2.0, d)
+    rows = np.sort(rng.choice(n, size=int(rng.integers(1, n + 1)), replace=False))
+    c, chi = 2.05 + 0.03 * seed, 0.73
+    a, b = np.random.default_rng(100 + seed), np.random.default_rng(100 + seed)
+    x_new, v_new = op.constricted_move(v, x, p, g, rows, c, c, chi, vmax, a)
+    v_ref = op.clamp_velocity(op.constricted_velocity(v[rows], x[rows], p[rows], g, c, c, chi, b), vmax)
+    assert np.array_equal(v_new, v_ref, equal_nan=True)
+    assert np.array_equal(x_new, x[rows] + v_ref, equal_nan=True)
+    assert np.any(np.abs(v_ref) == vmax)  # some components saturate
+    assert a.random() == b.random()  # the same numbers drawn
+
+
 def test_clamp_velocity():
     v = np.array([[3.0, -3.0], [0.1, -0.1]])
     assert np.array_equal(op.clamp_velocity(v, np.array([1.0, 2.0])), [[1.0, -2.0], [0.1, -0.1]])

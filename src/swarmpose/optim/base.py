@@ -35,6 +35,7 @@ from dataclasses import dataclass
 from types import MappingProxyType
 from typing import Any
 
+import numba as nb
 import numpy as np
 
 from swarmpose.errors import ConfigError, ShapeError
@@ -155,16 +156,37 @@ def feasibility(
     -------
     ndarray of bool, shape (N,)
     """
-    valid = np.all((poses >= lower) & (poses <= upper), axis=1)
-    if constraint is not None and valid.any():
-        rows = np.flatnonzero(valid)
-        ok = np.asarray(constraint(poses[rows]))
-        if ok.shape != (rows.size,):
+    p = np.ascontiguousarray(poses, dtype=np.float64)
+    valid = np.empty(p.shape[0], dtype=bool)
+    n_inside = _in_bounds(p, np.asarray(lower, dtype=np.float64), np.asarray(upper, dtype=np.float64), valid)
+    if constraint is not None and n_inside:
+        rows = None if n_inside == p.shape[0] else np.flatnonzero(valid)  # every row: no copy
+        tested = p if rows is None else p[rows]
+        ok = np.asarray(constraint(tested))
+        if ok.shape != (tested.shape[0],):
             raise ShapeError(
-                f"constraint must return shape ({rows.size},) for poses of shape {poses[rows].shape}, got {ok.shape}"
+                f"constraint must return shape ({tested.shape[0]},) for poses of shape {tested.shape}, got {ok.shape}"
             )
-        valid[rows] = ok.astype(bool)
+        if rows is None:
+            valid[:] = ok
+        else:
+            valid[rows] = ok
     return valid
+
+
+@nb.njit(cache=True, nogil=True)
+def _in_bounds(poses, lower, upper, out):
+    """``out = all(lower <= poses <= upper, axis=1)`` (NaN: outside); returns the number of rows inside."""
+    n = 0
+    for i in range(poses.shape[0]):
+        ok = True
+        for d in range(poses.shape[1]):
+            if not (poses[i, d] >= lower[d] and poses[i, d] <= upper[d]):
+                ok = False
+                break
+        out[i] = ok
+        n += ok
+    return n
 
 
 def clip_invalid(

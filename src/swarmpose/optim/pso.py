@@ -53,8 +53,7 @@ from .base import (
 )
 from .operators import (
     best_or_start,
-    clamp_velocity,
-    constricted_velocity,
+    constricted_move,
     constriction,
     global_best,
     linear_coefficients,
@@ -234,10 +233,8 @@ class ConstrictedPSO(Optimizer):
             x_old, v_old, pbest = self._x, self._v, self._pbest_x
 
             def propose(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-                # v = chi (v + c1 e1 (p_i - x_i) + c2 e2 (p_g - x_i))  (eq. 5.8); |v| <= 2 sigma
-                v_new = constricted_velocity(v_old[rows], x_old[rows], pbest[rows], gbest, c, c, chi, rng)
-                v_new = clamp_velocity(v_new, self._vmax)
-                return x_old[rows] + v_new, v_new  # x = x + v  (eq. 5.7)
+                # v = chi (v + c1 e1 (p_i - x_i) + c2 e2 (p_g - x_i))  (eq. 5.8); |v| <= 2 sigma; x = x + v (eq. 5.7)
+                return constricted_move(v_old, x_old, pbest, gbest, rows, c, c, chi, self._vmax, rng)
 
             (x, v), valid = redraw_invalid(propose, self._is_valid, self._n, self._max_redraws)
             x, valid = self._finish_moves(x, valid)
