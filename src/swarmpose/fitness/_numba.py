@@ -21,6 +21,7 @@ import numba as nb
 import numpy as np
 
 from swarmpose.body.kinematics import fk_pose_into
+from swarmpose.fitness.threads import store_release
 from swarmpose.render._kernels import (
     axis_depth_at,
     clip_segment,
@@ -31,12 +32,13 @@ from swarmpose.render._kernels import (
     silhouette_counts,
 )
 
-#: Hash of the kernel sources this module's cached kernels inline (body/kinematics.py, render/_kernels.py).
+#: Hash of the kernel sources this module's cached kernels inline (body/kinematics.py, render/_kernels.py,
+#: fitness/threads.py).
 #: numba's cache sees edits to this file only, so an edit there must change this line (or cached kernels keep
 #: running the old code); tests/test_numba_cache.py says when and gives the new value.
-INLINED_SOURCES_SHA1 = "b86a88ab5d1b7af0"
+INLINED_SOURCES_SHA1 = "c8eda21b119a0393"
 
-__all__ = ["eval_kernel", "eval_share", "row_prefix_sums"]
+__all__ = ["eval_kernel", "eval_share", "eval_share_go", "row_prefix_sums"]
 
 
 @nb.njit(cache=True, nogil=True)
@@ -262,6 +264,20 @@ def eval_share(idx, poses, parents, offsets, rot_axis, rot_sign, rot_param, tran
                         _region(k, nvs[k], region_spacing, c, sil, poly, sides, axis, info, racc)
             sums[n, c, 3] = racc[0]
             sums[n, c, 4] = racc[1]
+
+
+@nb.njit(cache=True, nogil=True)
+def eval_share_go(go, seq, idx, poses, parents, offsets, rot_axis, rot_sign, rot_param, trans_param,
+                  joint, start, end, semi_a, semi_b, scale, Rc, tc, cam, ctab, stab, near,
+                  prefix, sil, edges, edge_mask, top_cone, spacing, region_spacing,
+                  do_sil, do_edge, do_region, counts, sums):
+    """:func:`eval_share` after ``go[0] = seq``, set once the GIL is released: a worker of
+    :class:`swarmpose.fitness.threads.BatchThreads` that sees it starts on its chunk without waiting for the GIL."""
+    store_release(go, 0, seq)
+    eval_share(idx, poses, parents, offsets, rot_axis, rot_sign, rot_param, trans_param,
+               joint, start, end, semi_a, semi_b, scale, Rc, tc, cam, ctab, stab, near,
+               prefix, sil, edges, edge_mask, top_cone, spacing, region_spacing,
+               do_sil, do_edge, do_region, counts, sums)
 
 
 @nb.njit(cache=True, parallel=True, nogil=True)

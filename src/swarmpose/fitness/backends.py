@@ -11,8 +11,8 @@ optimisers and the tracker never see it.
   views in Python; slow (tens of ms per pose), obviously right; what the tests compare against.
 * ``"numba"`` -- :class:`NumbaBackend` (default): one fused numba kernel per share of the batch --
   kinematics, cone outlines, the scanline silhouette counter and the edge samples
-  (:func:`swarmpose.fitness._numba.eval_share`) -- with the poses dealt to all cores (threads that
-  sleep when idle; numba's ``prange`` is an option). ``cache=True``: compiled once per machine
+  (:func:`swarmpose.fitness._numba.eval_share`) -- with the poses dealt to all cores
+  (:mod:`swarmpose.fitness.threads`; numba's ``prange`` is an option). ``cache=True``: compiled once per machine
   (about 30-50 s), about 1 s to load afterwards.
 * ``"torch"`` -- :class:`swarmpose.fitness.torch_backend.TorchBackend` (registered by
   :mod:`swarmpose.fitness`): the same definitions as batched PyTorch code, the GPU path.
@@ -20,8 +20,6 @@ optimisers and the tracker never see it.
 
 from __future__ import annotations
 
-import os
-import threading
 import time
 from dataclasses import dataclass, field
 from typing import Any, Protocol
@@ -32,6 +30,7 @@ import numpy as np
 from swarmpose.camera import Camera
 from swarmpose.errors import ConfigError, ShapeError
 from swarmpose.features import FrameFeatures
+from swarmpose.fitness.threads import BatchThreads
 from swarmpose.render.project import (
     DEFAULT_N_RIM,
     DEFAULT_NEAR_MM,
@@ -255,19 +254,20 @@ class NumbaBackend(_BackendBase):
     n_rim, near : see :func:`swarmpose.render.project_cones`.
     threads : {"pool", "prange", "serial"}, default "pool"
         How the batch is spread over the cores. ``"pool"``: the batch is cut into one chunk per
-        thread, claimed by ``numba.get_num_threads()`` threads (the calling one and a pool), each
-        running the GIL-free serial kernel :func:`~swarmpose.fitness._numba.eval_share`; idle threads
-        sleep, and a chunk a late or preempted thread has not claimed is run by another.
-        ``"prange"``: numba's own
-        parallel loop (:func:`~swarmpose.fitness._numba.eval_kernel`); about 10 % faster on an idle
-        machine (batches of 20), but with numba's default OpenMP layer its waiting threads spin, and
-        when other processes compete for the cores a batch took 5-10x longer (2-core reference
-        machine at load average 7: 1.4k against 8.8k evaluations/s at 644x484). ``"serial"``: one core.
+        thread, claimed by ``numba.get_num_threads()`` threads (the calling one and workers,
+        :class:`~swarmpose.fitness.threads.BatchThreads`), each running the GIL-free serial kernel
+        :func:`~swarmpose.fitness._numba.eval_share`; between batches the workers wait spinning (yielding
+        the core) for up to 2 ms and then sleep, and a chunk a late or preempted worker has not claimed is
+        run by the caller. ``"prange"``: numba's own parallel loop
+        (:func:`~swarmpose.fitness._numba.eval_kernel`); with numba's default OpenMP layer its waiting
+        threads spin without yielding, which starves the tracker's read-ahead of the next frame (features
+        3 -> 26 ms per frame on the walk), and when other processes compete for the cores a batch took 5-10x
+        longer (2-core machine at load average 7: 1.4k against 8.8k evaluations/s at 644x484).
+        ``"serial"``: one core.
     """
 
     name = "numba"
-    _pool = None  # shared ThreadPoolExecutor, created on first use (per process: see _executor)
-    _pool_pid = -1
+    _threads: BatchThreads | None = None  # shared by the backends of a process (see _batch_threads)
 
     def __init__(self, model, *, n_rim: int = DEFAULT_N_RIM, near: float = DEFAULT_NEAR_MM,
                  threads: str = "pool"):
@@ -280,18 +280,18 @@ class NumbaBackend(_BackendBase):
         self._ctab, self._stab = rim_tables(self.n_rim)
 
     @classmethod
-    def _executor(cls, n: int):
-        # a pool inherited through fork() has no threads in the child: make a new one there
-        if cls._pool is None or cls._pool._max_workers < n or cls._pool_pid != os.getpid():
-            from concurrent.futures import ThreadPoolExecutor
-
-            cls._pool = ThreadPoolExecutor(max_workers=n, thread_name_prefix="swarmpose-fitness")
-            cls._pool_pid = os.getpid()
-        return cls._pool
+    def _batch_threads(cls, n: int) -> BatchThreads:
+        # threads inherited through fork() do not run in the child: start new ones there
+        bt = cls._threads
+        if bt is None or bt.n != n or not bt.alive:
+            if bt is not None and bt.alive:
+                bt.close()
+            bt = cls._threads = BatchThreads(n)
+        return bt
 
     def measure(self, prepared: PreparedFrame, poses: np.ndarray, request: Request) -> Measurements:
         """Measurements of ``poses (N, D)`` (see :class:`Measurements`)."""
-        from swarmpose.fitness._numba import eval_kernel, eval_share
+        from swarmpose.fitness._numba import eval_kernel, eval_share, eval_share_go
 
         p = np.ascontiguousarray(poses, dtype=np.float64)
         N, C = p.shape[0], prepared.n_views
@@ -307,25 +307,11 @@ class NumbaBackend(_BackendBase):
         elif nth == 1:
             eval_share(np.arange(N), *args, counts, sums)
         else:
-            # the batch in nth contiguous chunks, claimed by the calling thread and nth - 1 pool threads:
-            # a pool thread that wakes up late (or not at all, preempted) leaves its chunk to the others.
-            # One chunk per thread measured fastest: the per-chunk set-up costs more than finer balancing gains.
-            chunk = max(1, -(-N // nth))
-            chunks = iter([np.arange(a, min(a + chunk, N)) for a in range(0, N, chunk)])
-            lock = threading.Lock()
-
-            def work() -> None:
-                while True:
-                    with lock:
-                        idx = next(chunks, None)
-                    if idx is None:
-                        return
-                    eval_share(idx, *args, counts, sums)
-
-            futures = [self._executor(nth - 1).submit(work) for _ in range(nth - 1)]
-            work()
-            for f in futures:
-                f.result()
+            # one contiguous chunk per thread (finer chunks measured slower: each costs a call's set-up); the
+            # workers wait spinning between batches, so that a batch of 20 poses does not pay two thread wake-ups
+            self._batch_threads(numba.get_num_threads()).map(
+                N, lambda idx: eval_share(idx, *args, counts, sums),
+                lambda idx, go, seq: eval_share_go(go, seq, idx, *args, counts, sums))
         return Measurements.from_arrays(counts, sums)
 
 
