@@ -157,3 +157,14 @@ def test_refined_recovery_variants(model):
             apply_variant(base, bad)
     with pytest.raises(ConfigError, match="has no limb recovery"):
         apply_variant(apply_variant(base, "recovery=off"), "recovery=0.01")
+
+
+def test_refined_height_variant(model):
+    base = optim.get("refined", model=model, fps=20.0)
+    assert not base.silhouette_height
+    on = apply_variant(base, "height=silhouettes+recovery=0.01")
+    assert on.silhouette_height and on.recovery["threshold"] == 0.01
+    assert not apply_variant(on, "height=off").silhouette_height
+    for bad, cfg in (("height=yes", base), ("height=silhouettes", optim.get("sppso", model=model, fps=20.0))):
+        with pytest.raises(ConfigError, match="height=silhouettes"):
+            apply_variant(cfg, bad)

@@ -146,3 +146,39 @@ def test_mix_limbs_takes_each_limb_from_the_pass_that_has_it(short_sequence):
     assert score == pytest.approx(float(fit.evaluate(x[None])[0])) and score > pair.max()
     same, s2, none = mix_limbs(fit, model, truth, truth, None)
     assert np.array_equal(same, truth) and not none.any()
+
+
+def test_the_silhouettes_centre_rises_with_the_body_and_moves_the_predicted_height():
+    """The cone model drawn at two heights 120 mm apart: the triangulated centre of its silhouettes rises by about
+    as much, and a search with ``silhouette_height`` moves its prediction of the root height by that rise, only
+    from a neighbouring position (either direction) and never on the first frame searched."""
+    from swarmpose.body.model import load_model
+    from swarmpose.fitness import make_fitness
+    from swarmpose.fitness.scene import demo_cameras, demo_frame
+    from swarmpose.track.motion import parse_motion
+    from swarmpose.track.start import centre_of_silhouettes
+    from swarmpose.track.step import FrameSearch
+
+    model = load_model("balan31")
+    cams = demo_cameras(4)
+    low = model.zero_pose()
+    low[model.param_index("pelvis_tz")] = 950.0
+    high = low.copy()
+    high[model.param_index("pelvis_tz")] += 120.0
+    frames = [demo_frame(model, x, cams, inflate=1.0, clutter=0, noise=0.0) for x in (low, high)]
+    c0, c1 = (centre_of_silhouettes(f.silhouettes, list(f.cameras)) for f in frames)
+    assert c1[2] - c0[2] == pytest.approx(120.0, abs=6.0)
+    assert np.linalg.norm((c1 - c0)[:2]) < 6.0
+    assert centre_of_silhouettes(np.zeros_like(frames[0].silhouettes), list(cams)) is None
+
+    fit = make_fitness("silhouette_edge", model)
+    motion = parse_motion("zero-velocity")
+    search = FrameSearch(model=model, algo=None, fitness=fit, motion=motion, motion_mask=motion.mask(model),
+                         constraint=None, timer=None, extra_options={}, silhouette_height=True)
+    rises = []
+    for i, f in [(5, 0), (6, 1), (7, 0), (9, 1), (8, 0)]:  # positions, frames: 9 is not next to 7
+        fit.bind(frames[f])
+        rises.append(search._rise(i))
+    assert rises[0] == 0.0 and rises[3] == 0.0
+    assert rises[1] == pytest.approx(c1[2] - c0[2]) and rises[2] == pytest.approx(c0[2] - c1[2])
+    assert rises[4] == pytest.approx(c0[2] - c1[2])  # a backward pass: 9 -> 8

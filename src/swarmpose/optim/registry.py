@@ -390,6 +390,9 @@ class RefinedConfig(OptimizerConfig):
     keypoint_ik : bool
         The tracker fits each frame's pose to the triangulated keypoints from where the search left it
         (:func:`swarmpose.track.start.keypoint_ik`), where the sequence has keypoints; read by the tracker only.
+    silhouette_height : bool
+        The tracker moves the predicted root height by the rise of the silhouettes' triangulated centre since
+        the frame before (an image fitness's observation); read by the tracker only.
     """
 
     base: OptimizerConfig | None = None
@@ -398,6 +401,7 @@ class RefinedConfig(OptimizerConfig):
     refine_options: Mapping[str, Any] = field(default_factory=dict)
     recovery: Mapping[str, Any] = field(default_factory=dict)
     keypoint_ik: bool = False
+    silhouette_height: bool = False
 
     def __post_init__(self) -> None:
         super().__post_init__()

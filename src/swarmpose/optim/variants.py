@@ -24,7 +24,9 @@ def apply_variant(config: Any, variant: str) -> Any:
     * ``spread=K``: the search's per-parameter sigma times K.
     * ``refine=B`` (refined configurations): B pattern-search evaluations (0: none); ``recovery=off``: no
       loss detection; ``recovery=T``: a limb counts as lost above a disagreement of T (default 0.05; the
-      search per lost limb unchanged); several variants are joined by ``+`` (``apf=200x5+refine=0``).
+      search per lost limb unchanged); ``height=silhouettes``: the predicted root height moves by the rise of
+      the silhouettes' triangulated centre since the frame before (``height=off``: not); several variants are
+      joined by ``+`` (``apf=200x5+refine=0``).
     """
     if not variant:
         return config
@@ -33,6 +35,12 @@ def apply_variant(config: Any, variant: str) -> Any:
             config = apply_variant(config, part)
         return config
     head = variant.partition("=")[0].strip()
+    if head == "height":
+        value = variant.partition("=")[2].strip()
+        if not hasattr(config, "silhouette_height") or value not in ("silhouettes", "off"):
+            raise ConfigError(f"variant {variant!r}: expected height=silhouettes or height=off on a refined "
+                              f"configuration ({config.name!r})")
+        return dataclasses.replace(config, silhouette_height=value == "silhouettes")
     if head in ("refine", "recovery"):
         if not hasattr(config, "refine_budget"):
             raise ConfigError(f"variant {variant!r} needs a refined configuration, {config.name!r} is not one")

@@ -182,12 +182,18 @@ def silhouette_centre(seq: Any, k: int, views: list[int]) -> np.ndarray | None:
         if images is None or bgs is None:
             return None
         stored = np.stack([silhouette(images[c], bgs[c]) for c in range(seq.n_views)])
-    uv = np.full((1, len(views), 1, 2), np.nan)
-    for i, c in enumerate(views):
-        ys, xs = np.nonzero(stored[c])
+    return centre_of_silhouettes(stored[views], [seq.cameras[c] for c in views])
+
+
+def centre_of_silhouettes(silhouettes: np.ndarray, cameras: list) -> np.ndarray | None:
+    """The silhouettes' centroids ``(C, H, W)`` (one per camera; views with fewer than 50 pixels left out)
+    triangulated: ``(3,)`` mm, or None when fewer than two views see anyone."""
+    uv = np.full((1, len(cameras), 1, 2), np.nan)
+    for i in range(len(cameras)):
+        ys, xs = np.nonzero(silhouettes[i])
         if xs.size >= 50:
             uv[0, i, 0] = (xs.mean(), ys.mean())
-    centre = triangulate([seq.cameras[c] for c in views], uv)[0, 0]
+    centre = triangulate(list(cameras), uv)[0, 0]
     return centre if np.isfinite(centre).all() else None
 
 

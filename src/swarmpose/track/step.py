@@ -1,7 +1,8 @@
 """One frame of a track: predict, search, recover lost limbs, fit the keypoints; and the offline backward pass.
 
 :class:`FrameSearch` is what the tracker does on each frame once the frame's observation is bound to the
-fitness: the motion model's prediction (and the carried particle set moved with it), the optimiser's search
+fitness: the motion model's prediction (and the carried particle set moved with it; with ``silhouette_height`` the
+root's height moved by the rise of the silhouettes' triangulated centre since the frame before), the optimiser's search
 (on the first frame of a start from the silhouettes: a turn of headings, the best few searched, then more
 rounds from the best), the loss detection and re-search of :mod:`swarmpose.track.recovery`, and the per-frame
 keypoint IK of the configurations that ask for it.
@@ -31,6 +32,7 @@ from swarmpose.track.recovery import LIMBS
 from swarmpose.track.start import (
     START_ROUNDS,
     START_SEARCHES,
+    centre_of_silhouettes,
     fill_gaps,
     heading_candidates,
     keypoint_ik,
@@ -79,6 +81,20 @@ class FrameSearch:
     recovery: Any = None
     kp_joints: np.ndarray | None = None
     search_start: bool = False
+    silhouette_height: bool = False
+    _centre: tuple[int, np.ndarray | None] | None = field(default=None, init=False, repr=False)
+
+    def _rise(self, i: int) -> float:
+        """How far the silhouettes' triangulated centre rose (mm) since the frame searched before, when that was
+        position ``i - 1`` or ``i + 1`` (a backward pass) and both centres are known; else 0."""
+        features = getattr(self.fitness, "features", None)
+        if features is None:
+            features = getattr(getattr(self.fitness, "prepared", None), "features", None)
+        c = None if features is None else centre_of_silhouettes(features.silhouettes, list(features.cameras))
+        before, self._centre = self._centre, (i, c)
+        if c is None or before is None or before[1] is None or abs(before[0] - i) != 1:
+            return 0.0
+        return float(c[2] - before[1][2])
 
     def step(self, i: int, history: np.ndarray, x_prev: np.ndarray, carry: Any, rng: np.random.Generator,
              first: bool = False) -> StepResult:
@@ -89,6 +105,12 @@ class FrameSearch:
         model, timer, fitness, extra = self.model, self.timer, self.fitness, self.extra_options
         with timer.part("motion"):
             x_pred = self.motion.predict(history, self.constraint, self.motion_mask)
+            if self.silhouette_height:
+                rise = self._rise(i)
+                if rise:
+                    tz = model.param_index("pelvis_tz")
+                    x_pred = x_pred.copy()
+                    x_pred[tz] = min(max(x_pred[tz] + rise, model.lower[tz]), model.upper[tz])
             step = x_pred - x_prev
             if carry is not None and np.any(step):
                 carry = optim.ParticleSet(self.motion.move_particles(carry.particles, step, self.constraint),

@@ -63,6 +63,12 @@ class TimedFitness:
     def __call__(self, poses: Any) -> Any:
         return self.evaluate(poses)
 
+    @property
+    def features(self) -> Any:
+        """The bound frame's features (an image fitness's), else None."""
+        prepared = getattr(self._fitness, "prepared", None)
+        return None if prepared is None else prepared.features
+
     def part_agreement(self, poses: Any) -> Any:
         with self._timer.part("fitness"):
             return self._fitness.part_agreement(poses)

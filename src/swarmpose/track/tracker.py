@@ -645,7 +645,9 @@ def run_tracker(
     prefetch = Prefetcher(load, T if stop_after is None else min(T, stop_after))
     search = FrameSearch(model=model, algo=algo, fitness=fitness, motion=motion, motion_mask=motion_mask,
                          constraint=constraint, timer=timer, extra_options=extra_options, recovery=recovery,
-                         kp_joints=kp_joints, search_start=setup.search_start)
+                         kp_joints=kp_joints, search_start=setup.search_start,
+                         silhouette_height=bool(getattr(algo, "silhouette_height", False))
+                         and cfg.fitness_kind in IMAGE_FITNESS)
     try:
         for i in range(start_k, T):
             if stop_after is not None and i >= stop_after:
