@@ -131,7 +131,9 @@ def track(
                  "2000, ...; the SPPSO family's iterations x B/1000); stage2=PxI: SPPSO's second stage with P "
                  "particles x I iterations; global=PxI: one PSO stage over all parameters; hard: each stage after the "
                  "first holds the first stage's parameters fixed; apf=PxL: an APF with P particles x L layers "
-                 "(apf, apf-adaptive, apf-dr05)."),
+                 "(apf, apf-adaptive, apf-dr05). For refined: refine=B, recovery=off or recovery=T (a limb is lost "
+                 "above a silhouette disagreement of T, default 0.05), height=silhouettes (the predicted root height "
+                 "follows the rise of the silhouettes' centre). Join several with +."),
     downsample: int = typer.Option(1, help="Image downsampling: 1 (full resolution), 2, 4 or 8 (faster, coarser)."),
     backend: str = typer.Option(
         "numba", help="Fitness backend: numba (default, all CPU cores), torch (PyTorch on the GPU when there is "
