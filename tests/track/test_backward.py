@@ -157,7 +157,7 @@ def test_the_silhouettes_centre_rises_with_the_body_and_moves_the_predicted_heig
     from swarmpose.fitness.scene import demo_cameras, demo_frame
     from swarmpose.track.motion import parse_motion
     from swarmpose.track.start import centre_of_silhouettes
-    from swarmpose.track.step import FrameSearch
+    from swarmpose.track.step import RISE_DEAD_ZONE_MM, FrameSearch
 
     model = load_model("balan31")
     cams = demo_cameras(4)
@@ -179,6 +179,14 @@ def test_the_silhouettes_centre_rises_with_the_body_and_moves_the_predicted_heig
     for i, f in [(5, 0), (6, 1), (7, 0), (9, 1), (8, 0)]:  # positions, frames: 9 is not next to 7
         fit.bind(frames[f])
         rises.append(search._rise(i))
+    dz = c1[2] - c0[2] - RISE_DEAD_ZONE_MM  # the rise beyond the dead zone
     assert rises[0] == 0.0 and rises[3] == 0.0
-    assert rises[1] == pytest.approx(c1[2] - c0[2]) and rises[2] == pytest.approx(c0[2] - c1[2])
-    assert rises[4] == pytest.approx(c0[2] - c1[2])  # a backward pass: 9 -> 8
+    assert rises[1] == pytest.approx(dz) and rises[2] == pytest.approx(-dz)
+    assert rises[4] == pytest.approx(-dz)  # a backward pass: 9 -> 8
+    small_rise = low.copy()
+    small_rise[model.param_index("pelvis_tz")] += 0.5 * RISE_DEAD_ZONE_MM
+    rises = []
+    for i, x in enumerate((low, small_rise)):
+        fit.bind(demo_frame(model, x, cams, inflate=1.0, clutter=0, noise=0.0))
+        rises.append(search._rise(20 + i))
+    assert rises == [0.0, 0.0]  # a rise within the dead zone does not move the prediction
