@@ -91,6 +91,14 @@ class FrameSearch:
     silhouette_height: bool = False
     _centre: tuple[int, np.ndarray | None] | None = field(default=None, init=False, repr=False)
 
+    def note_centre(self, i: int, features: Any) -> tuple[int, np.ndarray | None] | None:
+        """Remember position ``i``'s silhouette centre (from its features; a resumed run notes the frame before
+        the first it tracks). Returns what was noted before."""
+        silhouettes = getattr(features, "silhouettes", None)
+        c = None if silhouettes is None else centre_of_silhouettes(silhouettes, list(features.cameras))
+        before, self._centre = self._centre, (i, c)
+        return before
+
     def _rise(self, i: int) -> float:
         """How far the silhouettes' triangulated centre rose (mm) since the frame searched before, when that was
         position ``i - 1`` or ``i + 1`` (a backward pass) and both centres are known, less :data:`RISE_DEAD_ZONE_MM`
@@ -98,8 +106,8 @@ class FrameSearch:
         features = getattr(self.fitness, "features", None)
         if features is None:
             features = getattr(getattr(self.fitness, "prepared", None), "features", None)
-        c = None if features is None else centre_of_silhouettes(features.silhouettes, list(features.cameras))
-        before, self._centre = self._centre, (i, c)
+        before = self.note_centre(i, features)
+        c = self._centre[1]
         if c is None or before is None or before[1] is None or abs(before[0] - i) != 1:
             return 0.0
         rise = float(c[2] - before[1][2])

@@ -648,6 +648,8 @@ def run_tracker(
                          kp_joints=kp_joints, search_start=setup.search_start,
                          silhouette_height=bool(getattr(algo, "silhouette_height", False))
                          and cfg.fitness_kind in IMAGE_FITNESS)
+    if search.silhouette_height and start_k > 0:  # a resumed run: the rise into its first frame as in one run
+        search.note_centre(start_k - 1, load(start_k - 1))
     try:
         for i in range(start_k, T):
             if stop_after is not None and i >= stop_after:
