@@ -158,6 +158,7 @@ def test_the_silhouettes_centre_rises_with_the_body_and_moves_the_predicted_heig
     from swarmpose.track.motion import parse_motion
     from swarmpose.track.start import centre_of_silhouettes
     from swarmpose.track.step import RISE_DEAD_ZONE_MM, FrameSearch
+    from swarmpose.track.timing import PartTimer, TimedFitness
 
     model = load_model("balan31")
     cams = demo_cameras(4)
@@ -173,7 +174,7 @@ def test_the_silhouettes_centre_rises_with_the_body_and_moves_the_predicted_heig
 
     fit = make_fitness("silhouette_edge", model)
     motion = parse_motion("zero-velocity")
-    search = FrameSearch(model=model, algo=None, fitness=fit, motion=motion, motion_mask=motion.mask(model),
+    search = FrameSearch(model=model, algo=None, fitness=TimedFitness(fit, PartTimer()), motion=motion, motion_mask=motion.mask(model),
                          constraint=None, timer=None, extra_options={}, silhouette_height=True)
     rises = []
     for i, f in [(5, 0), (6, 1), (7, 0), (9, 1), (8, 0)]:  # positions, frames: 9 is not next to 7

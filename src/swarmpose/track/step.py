@@ -103,10 +103,7 @@ class FrameSearch:
         """How far the silhouettes' triangulated centre rose (mm) since the frame searched before, when that was
         position ``i - 1`` or ``i + 1`` (a backward pass) and both centres are known, less :data:`RISE_DEAD_ZONE_MM`
         towards 0; else 0."""
-        features = getattr(self.fitness, "features", None)
-        if features is None:
-            features = getattr(getattr(self.fitness, "prepared", None), "features", None)
-        before = self.note_centre(i, features)
+        before = self.note_centre(i, getattr(self.fitness, "features", None))  # the tracker's TimedFitness
         c = self._centre[1]
         if c is None or before is None or before[1] is None or abs(before[0] - i) != 1:
             return 0.0
