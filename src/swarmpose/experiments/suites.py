@@ -119,13 +119,17 @@ def _markers_reprojection() -> list[Entry]:
 def _ablation() -> list[Entry]:
     """The default configuration built up one component at a time at 20 fps (``refined``, beyond the papers):
     Deutscher & Reid's APF at 200 x 6, the root carried on at its last velocity, the local pattern search,
-    and the recovery of lost limbs."""
+    the recovery of lost limbs, the root's height moved by the silhouettes' rise, and the lower loss
+    threshold of the recovery."""
     ref = "beyond the papers; base: Deutscher & Reid 2005"
     return [
         Entry("apf-dr05 200x6", "apf-dr05", 20.0, variant="apf=200x6", motion="zero-velocity", reference=ref),
         Entry("+ root velocity", "refined", 20.0, variant="refine=0+recovery=off", reference=ref),
         Entry("+ pattern search", "refined", 20.0, variant="recovery=off", reference=ref),
         Entry("+ limb recovery (refined)", "refined", 20.0, reference=ref),
+        Entry("+ silhouette height", "refined", 20.0, variant="height=silhouettes", reference=ref),
+        Entry("+ loss threshold 0.01", "refined", 20.0, variant="height=silhouettes+recovery=0.01",
+              reference=ref),
     ]
 
 
