@@ -196,3 +196,41 @@ def test_silhouette_threshold_is_strict():
         sil = silhouette(img, bg, threshold=25, blur_px=0, open_px=0, close_px=0)
         assert sil[10:20, 10:20].min() == sil[10:20, 10:20].max() == fg, diff
         assert sil.sum() == 100 * fg
+
+
+def _whole_image_edge_map(image, sil, threshold=40.0, dilate_px=7, sigma_px=2.0, presmooth=True):
+    """The plain reference of ``edge_map``: every step on the whole image."""
+    g = cv2.GaussianBlur(image, (3, 3), 0) if presmooth else image
+    mag = cv2.add(cv2.convertScaleAbs(cv2.Sobel(g, cv2.CV_16S, 1, 0, ksize=3)),
+                  cv2.convertScaleAbs(cv2.Sobel(g, cv2.CV_16S, 0, 1, ksize=3)))
+    edges = cv2.threshold(mag, min(threshold * 4.0, 254.0), 1, cv2.THRESH_BINARY)[1]
+    k = dilate_px if dilate_px % 2 else dilate_px + 1
+    edges = cv2.bitwise_and(edges, cv2.dilate(sil, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k))))
+    kb = 2 * int(np.ceil(3.0 * sigma_px)) + 1
+    e = cv2.GaussianBlur(edges.astype(np.float32), (kb, kb), sigma_px)
+    return edges, (e * np.float32(1.0 / e.max()) if e.max() > 0 else e)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_edges_filtered_in_the_silhouettes_box_equal_the_whole_images(seed):
+    """``edge_pixels`` and ``blur_edges`` work in the bounding box of what they need only; the results are the
+    whole image's to the last bit, with the person anywhere (also against a border) and any blur."""
+    from swarmpose.features import blur_edges, edge_pixels
+
+    rng = np.random.default_rng(seed)
+    frame, back, _ = _scene(rng, noise=5.0)
+    sil = np.zeros((H, W), np.uint8)
+    cx, cy = int(rng.integers(0, W)), int(rng.integers(0, H))  # seeds 0-5: boxes inside and cut by borders
+    if seed == 0:
+        cx, cy = 3, H - 2
+    cv2.ellipse(sil, (cx, cy), (int(rng.integers(5, 80)), int(rng.integers(5, 200))), float(rng.uniform(0, 180)),
+                0, 360, 1, -1)
+    sigma = float(rng.choice([1.0, 1.5, 2.0, 3.0]))
+    presmooth = bool(seed % 2)
+    want_pixels, want = _whole_image_edge_map(frame, sil, sigma_px=sigma, presmooth=presmooth)
+    pixels = edge_pixels(frame, sil, presmooth=presmooth)
+    np.testing.assert_array_equal(pixels, want_pixels)
+    assert pixels.sum() > 20
+    np.testing.assert_array_equal(blur_edges(pixels, sigma), want)
+    np.testing.assert_array_equal(edge_map(frame, sil, sigma_px=sigma, presmooth=presmooth), want)
+    assert not blur_edges(np.zeros((H, W), np.uint8)).any() and not edge_pixels(frame, 0 * sil).any()

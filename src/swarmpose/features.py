@@ -13,13 +13,17 @@ Public API
 ``edge_map(image, silhouette, *, threshold=40, dilate_px=7, sigma_px=2.0) -> (H, W) float32``
     Thesis sec. 5.2.1: Sobel -> threshold -> mask with the dilated silhouette -> Gaussian blur ->
     rescale to ``[0, 1]`` (divided by its maximum; all zeros when there is no edge).
+``edge_pixels(image, silhouette, *, threshold=40, dilate_px=7) -> (H, W) uint8``
+    The binary edges of ``edge_map`` before its blur (filtered in the dilated silhouette's box only).
 ``blur_edges(binary (H, W), sigma_px=2.0) -> (H, W) float32``
     The last two steps of ``edge_map`` for any binary edge image (e.g. a model's own outlines).
 ``FrameFeatures(silhouettes (C, H, W) uint8, edges (C, H, W) float32, cameras: list[Camera])``
     The observation of one frame in ``C`` views; :meth:`FrameFeatures.downsample` gives a pyramid
     level with the cameras rescaled by :meth:`swarmpose.camera.Camera.scaled`.
 ``compute_features(images (C, H, W) uint8, backgrounds (C, H, W) uint8, cameras, *, downsample=1)``
-    Both features for every view, at full resolution, then optionally downsampled.
+    Both features for every view, at full resolution, then optionally downsampled; in two halves,
+    ``binary_features`` (silhouettes and edge pixels, what ``swarmpose.track.feature_store`` keeps
+    between runs) and ``features_from_binary`` (the blur and the pyramid level).
 ``parse_feature_options("edge_threshold=8,...") -> (silhouette_options, edge_options)``
     The settings above from a ``key=value`` string (``swarmpose track --features``).
 
@@ -46,7 +50,8 @@ import numpy as np
 from swarmpose.camera import Camera
 from swarmpose.errors import ConfigError, ShapeError, option_items
 
-__all__ = ["silhouette", "edge_map", "blur_edges", "FrameFeatures", "compute_features", "FEATURE_OPTIONS",
+__all__ = ["silhouette", "edge_map", "edge_pixels", "blur_edges", "FrameFeatures", "compute_features",
+           "binary_features", "features_from_binary", "FEATURE_OPTIONS",
            "parse_feature_options"]
 
 #: Keys of :func:`parse_feature_options`: ``(function, keyword)`` of :func:`silhouette` / :func:`edge_map`.
@@ -200,45 +205,106 @@ def edge_map(
     ConfigError
         ``sigma_px <= 0``.
     """
+    if not sigma_px > 0:
+        raise ConfigError(f"sigma_px must be > 0, got {sigma_px!r}")
+    pixels = edge_pixels(image, silhouette, threshold=threshold, dilate_px=dilate_px, presmooth=presmooth)
+    if out is not None and (out.shape != pixels.shape or out.dtype != np.float32 or not out.flags.c_contiguous):
+        raise ShapeError(f"out must be a C-contiguous float32 array of shape {pixels.shape}")
+    return blur_edges(pixels, sigma_px, out=out)
+
+
+def _box(mask: np.ndarray, margin: int) -> tuple[slice, slice] | None:
+    """Rows and columns of the bounding box of ``mask``'s non-zero pixels grown by ``margin`` (clipped to the
+    image); None when every pixel is zero."""
+    x, y, w, h = cv2.boundingRect(mask)
+    if w == 0 or h == 0:
+        return None
+    H, W = mask.shape
+    return (slice(max(y - margin, 0), min(y + h + margin, H)), slice(max(x - margin, 0), min(x + w + margin, W)))
+
+
+def edge_pixels(
+    image: np.ndarray,
+    silhouette: np.ndarray,
+    *,
+    threshold: float = 40.0,
+    dilate_px: int = 7,
+    presmooth: bool = True,
+) -> np.ndarray:
+    """The binary edges of :func:`edge_map` before its blur: ``(H, W)`` uint8, 1 where the (pre-smoothed) L1
+    Sobel magnitude exceeds ``4 * threshold`` inside the silhouette dilated by ``dilate_px``.
+
+    With a mask only the mask's bounding box is filtered, grown by the 3x3 filters' reach (two pixels with the
+    pre-smoothing, one without): every kept pixel sees the same neighbours as on the whole image, so the
+    result is the whole image's, exactly (tests/test_features.py).
+    """
     img = _as_gray(image, "image")
     if img.ndim == 3:
         img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
     sil = np.asarray(silhouette)
     if sil.shape != img.shape:
         raise ShapeError(f"silhouette must have the image's shape {img.shape}, got {sil.shape}")
-    if not sigma_px > 0:
-        raise ConfigError(f"sigma_px must be > 0, got {sigma_px!r}")
     if sil.dtype != np.uint8:
         sil = (sil != 0).astype(np.uint8)
-    g = cv2.GaussianBlur(img, (3, 3), 0) if presmooth else img
-    gx = cv2.Sobel(g, cv2.CV_16S, 1, 0, ksize=3)
-    gy = cv2.Sobel(g, cv2.CV_16S, 0, 1, ksize=3)
-    mag = cv2.add(cv2.convertScaleAbs(gx), cv2.convertScaleAbs(gy))  # |dx| + |dy|, saturating uint8
     # an ideal step of height h: L1 magnitude 4h raw, 3h after the 3x3 pre-smoothing (test_features);
     # saturation at 255 only affects strong edges
     thr = min(float(threshold) * 4.0, 254.0)
-    _, edges = cv2.threshold(mag, thr, 1.0, cv2.THRESH_BINARY)
+    reach = 2 if presmooth else 1  # how far the 3x3 pre-smoothing and the 3x3 Sobel look
+
+    def magnitude_edges(g: np.ndarray) -> np.ndarray:
+        if presmooth:
+            g = cv2.GaussianBlur(g, (3, 3), 0)
+        gx = cv2.Sobel(g, cv2.CV_16S, 1, 0, ksize=3)
+        gy = cv2.Sobel(g, cv2.CV_16S, 0, 1, ksize=3)
+        mag = cv2.add(cv2.convertScaleAbs(gx), cv2.convertScaleAbs(gy))  # |dx| + |dy|, saturating uint8
+        return cv2.threshold(mag, thr, 1, cv2.THRESH_BINARY)[1]
+
     k = _odd(dilate_px)
-    if k > 0:
-        mask = cv2.dilate(sil, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k))) if k > 1 else sil
-        edges = cv2.bitwise_and(edges, mask)
-    if out is not None and (out.shape != img.shape or out.dtype != np.float32 or not out.flags.c_contiguous):
-        raise ShapeError(f"out must be a C-contiguous float32 array of shape {img.shape}")
-    return blur_edges(edges, sigma_px, out=out)
+    if k <= 0:  # no mask: the whole image
+        return magnitude_edges(img)
+    out = np.zeros(img.shape, np.uint8)
+    box = _box(sil, k // 2 + reach)  # the dilated silhouette and the filters' reach around it
+    if box is None:
+        return out
+    s = sil[box]
+    mask = cv2.dilate(s, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k))) if k > 1 else s
+    out[box] = cv2.bitwise_and(magnitude_edges(np.ascontiguousarray(img[box])), mask)
+    return out
 
 
 def blur_edges(edges: np.ndarray, sigma_px: float = 2.0, *, out: np.ndarray | None = None) -> np.ndarray:
     """The last step of :func:`edge_map`: Gaussian blur (sigma ``sigma_px``, kernel +-3 sigma) of a binary
     edge image, divided by its maximum (``[0, 1]``; all zeros stay zeros).
 
-    ``out`` (float32, the image's shape, C-contiguous) receives the result when given.
+    Only the bounding box of the non-zero pixels grown by the kernel's radius is blurred (the rest stays
+    exactly zero; the result is the whole image's, exactly); ``out`` (float32, the image's shape, C-contiguous) receives the result when given.
     """
+    e = np.asarray(edges)
+    if out is not None and (out.shape != e.shape or out.dtype != np.float32 or not out.flags.c_contiguous):
+        raise ShapeError(f"out must be a C-contiguous float32 array of shape {e.shape}")
+    if out is None:
+        out = np.zeros(e.shape, np.float32)
+    else:
+        out[...] = 0.0
+    if e.size == 0:
+        return out
     kb = 2 * int(np.ceil(3.0 * sigma_px)) + 1  # +-3 sigma (OpenCV's float default, 4 sigma, is slower)
-    e = cv2.GaussianBlur(np.asarray(edges).astype(np.float32), (kb, kb), float(sigma_px), dst=out)
-    peak = float(e.max()) if e.size else 0.0
+    # grown by the radius and one pixel: the blur reflects the box's border rows (OpenCV's default border), and
+    # those it reflects into a window must be zeros, as outside the box
+    box = _box(e if e.dtype == np.uint8 else (e != 0).view(np.uint8), kb // 2 + 1)
+    if box is None:
+        return out
+    rows, cols = box
+    W = e.shape[1]
+    x0 = cols.start - cols.start % 16
+    x1 = min(x0 + -(-(cols.stop - x0) // 16) * 16, W)
+    box = (rows, slice(x0, x1))
+    blurred = cv2.GaussianBlur(np.ascontiguousarray(e[box], dtype=np.float32), (kb, kb), float(sigma_px))
+    peak = float(blurred.max())
     if peak > 0.0:
-        e *= np.float32(1.0 / peak)
-    return e
+        blurred *= np.float32(1.0 / peak)
+    out[box] = blurred
+    return out
 
 
 @dataclass(eq=False)
@@ -428,6 +494,17 @@ def compute_features(
     ShapeError
         Mismatched shapes, or not one camera per view.
     """
+    sil, pix = binary_features(images, backgrounds, silhouette_options=silhouette_options,
+                               edge_options=edge_options, silhouettes=silhouettes)
+    return features_from_binary(sil, pix, cameras, edge_options=edge_options, downsample=downsample,
+                                keypoints=keypoints)
+
+
+def binary_features(images: np.ndarray, backgrounds: np.ndarray | None, *, silhouette_options: dict | None = None,
+                    edge_options: dict | None = None,
+                    silhouettes: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The binary half of :func:`compute_features`: ``(silhouettes, edge pixels)``, each ``(C, H, W)`` uint8 in
+    {0, 1} (:func:`silhouette` or the given ``silhouettes``; :func:`edge_pixels`). Shapes as checked there."""
     imgs = np.asarray(images)
     if imgs.ndim not in (3, 4):
         raise ShapeError(f"images must have shape (C, H, W) or (C, H, W, 3), got {imgs.shape}")
@@ -437,15 +514,28 @@ def compute_features(
     bgs = None if given is not None else np.asarray(backgrounds)
     if bgs is not None and bgs.shape != imgs.shape:
         raise ShapeError(f"backgrounds must have the images' shape {imgs.shape}, got {bgs.shape}")
-    if len(cameras) != imgs.shape[0]:
-        raise ShapeError(f"expected {imgs.shape[0]} cameras (one per view), got {len(cameras)}")
     so = dict(silhouette_options or {})
-    eo = dict(edge_options or {})
+    eo = {k: v for k, v in (edge_options or {}).items() if k != "sigma_px"}  # the blur is the other half's
     C, H, W = imgs.shape[:3]
     sil = np.empty((C, H, W), np.uint8)
-    edg = np.empty((C, H, W), np.float32)
+    pix = np.empty((C, H, W), np.uint8)
     for v in range(C):  # one view at a time: OpenCV calls, a handful per view
         sil[v] = (given[v] > 0) if given is not None else silhouette(imgs[v], bgs[v], **so)
-        edge_map(imgs[v], sil[v], out=edg[v], **eo)
+        pix[v] = edge_pixels(imgs[v], sil[v], **eo)
+    return sil, pix
+
+
+def features_from_binary(silhouettes: np.ndarray, pixels: np.ndarray, cameras: Sequence[Camera], *,
+                         edge_options: dict | None = None, downsample: int = 1,
+                         keypoints: tuple[np.ndarray, np.ndarray] | None = None) -> FrameFeatures:
+    """The other half of :func:`compute_features`: the edge pixels blurred into edge maps (:func:`blur_edges`,
+    ``edge_options["sigma_px"]``), then the pyramid level ``downsample``."""
+    sigma = float((edge_options or {}).get("sigma_px", 2.0))
+    if not sigma > 0:
+        raise ConfigError(f"sigma_px must be > 0, got {sigma!r}")
+    sil = np.asarray(silhouettes)
+    edg = np.empty(sil.shape, np.float32)
+    for v in range(sil.shape[0]):
+        blur_edges(pixels[v], sigma, out=edg[v])
     kp, kc = (None, None) if keypoints is None else keypoints
     return FrameFeatures(sil, edg, list(cameras), kp, kc).downsample(downsample)

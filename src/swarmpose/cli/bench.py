@@ -6,7 +6,17 @@ from __future__ import annotations
 import typer
 
 from swarmpose.cli.app import app
-from swarmpose.cli.common import DEFAULT_ALGO, console, err_console, fail_on_user_error, print_json
+from swarmpose.cli.common import (
+    DEFAULT_ALGO,
+    DEFAULT_FEATURE_CACHE,
+    FEATURE_CACHE_HELP,
+    console,
+    err_console,
+    escape,
+    fail_on_user_error,
+    feature_cache,
+    print_json,
+)
 
 bench_app = typer.Typer(help="Benchmarks: fitness throughput, where a tracking run spends its time, person detection speed.",
                         no_args_is_help=True)
@@ -117,6 +127,8 @@ def track(
     repeat: int = typer.Option(1, min=1, help="Play the tracked frames this many times, every other pass "
                                               "backwards: a long recording, to see whether the cost per frame "
                                               "grows with it."),
+    feature_cache_dir: str = typer.Option(DEFAULT_FEATURE_CACHE, "--feature-cache",
+                                          help=FEATURE_CACHE_HELP + " Off: the time of a sequence's first run."),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object instead of a table."),
 ) -> None:
     """Track one run in this process and show where its time goes, part by part of the frame loop
@@ -128,7 +140,7 @@ def track(
 
     cfg = TrackConfig(algo=algo or DEFAULT_ALGO, fps=fps, seed=seed, max_frames=max_frames)
     seq = resolve_sequence(source or str(DEFAULT_CLIP), progress=not json_out)
-    res = bench_track(seq, cfg, repeat=repeat)
+    res = bench_track(seq, cfg, repeat=repeat, feature_cache=feature_cache(feature_cache_dir))
     if json_out:
         print_json(res)
         return
@@ -145,6 +157,10 @@ def track(
     console.print(f"ms per frame in the first and the last quarter of the run: "
                   f"{res['ms_per_frame_first_quarter']:.1f} and {res['ms_per_frame_last_quarter']:.1f}",
                   highlight=False)
+    store = res["feature_store"]
+    console.print("features: every frame computed (--feature-cache off)" if store is None else
+                  f"features: {store['read']} frames read from the feature store, {store['computed']} computed "
+                  f"({escape(store['folder'])})", highlight=False)
     console.print(f"peak memory {res['peak_rss_mb']:.0f} MB; D_mean {res['d_mean_mm']:.1f} mm"
                   if res["d_mean_mm"] is not None else f"peak memory {res['peak_rss_mb']:.0f} MB", highlight=False)
 

@@ -18,7 +18,7 @@ from rich.markup import escape
 from swarmpose.errors import SwarmposeError
 from swarmpose.io.jsonable import to_jsonable
 
-__all__ = ["Interrupted", "console", "err_console", "escape", "print_json", "fail_on_user_error", "to_jsonable", "count",
+__all__ = ["DEFAULT_FEATURE_CACHE", "FEATURE_CACHE_HELP", "feature_cache", "Interrupted", "console", "err_console", "escape", "print_json", "fail_on_user_error", "to_jsonable", "count",
            "interrupted_tracking", "saved_frames"]
 
 # soft_wrap: lines are not cut at 80 columns when stdout is a file or a pipe (tables still fit the width)
@@ -29,6 +29,19 @@ F = TypeVar("F", bound=Callable[..., Any])
 
 #: The algorithm of `track`, `demo` and `bench track` when none is named.
 DEFAULT_ALGO = "refined"
+
+#: `--feature-cache` of the commands that track: the folder of the feature stores (track.feature_store).
+DEFAULT_FEATURE_CACHE = "cache/features"
+FEATURE_CACHE_HELP = ("Folder that keeps each sequence's silhouettes and edge pixels between runs (a later run of "
+                      "the same sequence, views and --features reads them instead of decoding the images; the "
+                      "results are the same); 'off': compute every frame.")
+
+
+def feature_cache(value: str | None) -> Path | None:
+    """``--feature-cache``'s folder, or None for ``off``."""
+    if value is None or value.strip().lower() in ("off", "none", ""):
+        return None
+    return Path(value)
 
 
 def count(n: int, word: str) -> str:

@@ -7,7 +7,15 @@ from pathlib import Path
 import typer
 
 from swarmpose.cli.app import app
-from swarmpose.cli.common import console, fail_on_user_error, interrupted_tracking, print_json
+from swarmpose.cli.common import (
+    DEFAULT_FEATURE_CACHE,
+    FEATURE_CACHE_HELP,
+    console,
+    fail_on_user_error,
+    feature_cache,
+    interrupted_tracking,
+    print_json,
+)
 from swarmpose.cli.demo import DEFAULT_CLIP
 from swarmpose.cli.track_commands import run_setting_parts
 
@@ -35,6 +43,7 @@ def compare(
                                         "-ds<N>)."),
     downsample: int = typer.Option(1, help="Image downsampling: 1 (full resolution), 2, 4 or 8."),
     workers: int = typer.Option(None, min=1, help="Parallel local processes (default: one per core)."),
+    feature_cache_dir: str = typer.Option(DEFAULT_FEATURE_CACHE, "--feature-cache", help=FEATURE_CACHE_HELP),
     scheduler: str = typer.Option(None, help="Dask scheduler address, e.g. tcp://host:8786: run the jobs on that "
                                              "cluster instead (pip install 'swarmpose\\[dask]')."),
     resume: bool = typer.Option(False, help="Continue interrupted runs."),
@@ -79,7 +88,8 @@ def compare(
         client = connect_scheduler(scheduler) if scheduler else None  # a wrong address fails before any synthesis
         seqs = [resolve_sequence(s, progress=progress) for s in (sources or [str(DEFAULT_CLIP)])]
         report = run_suite(suite, seqs, out, runs=runs, seed=seed, workers=workers, scheduler=client,
-                           resume=resume, downsample=downsample, progress=progress, max_frames=max_frames)
+                           resume=resume, downsample=downsample, progress=progress, max_frames=max_frames,
+                           feature_cache=feature_cache(feature_cache_dir))
     except KeyboardInterrupt:
         raise interrupted_tracking(out) from None
     if json_out:

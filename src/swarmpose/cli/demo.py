@@ -7,7 +7,15 @@ from pathlib import Path
 import typer
 
 from swarmpose.cli.app import app
-from swarmpose.cli.common import DEFAULT_ALGO, console, err_console, escape, fail_on_user_error, print_json
+from swarmpose.cli.common import (
+    DEFAULT_ALGO,
+    DEFAULT_FEATURE_CACHE,
+    console,
+    err_console,
+    escape,
+    fail_on_user_error,
+    print_json,
+)
 
 DEFAULT_CLIP = Path(__file__).resolve().parents[3].parent / "shared" / "data" / "mocap" / "cmu_16_16_walk.bvh"
 
@@ -50,7 +58,8 @@ def demo(
         err_console.print(f"[yellow]{escape(str(out))}/summary.json exists: reusing the tracked runs (delete the folder to "
                           f"redo){escape(_made_by_other_code(out))}[/yellow]")
     else:  # a fresh demo, an interrupted one (resumed) or more runs than a finished one (added)
-        summary = track_runs(seq, config, runs, out, resume=(out / "config.json").is_file(), progress=not json_out)
+        summary = track_runs(seq, config, runs, out, resume=(out / "config.json").is_file(), progress=not json_out,
+                             feature_cache=DEFAULT_FEATURE_CACHE)
     paths = make_report(out, overlay_frames=4)
     data = {**summary, "report": str(paths.summary), "html": str(paths.html), "figures": [str(p) for p in paths.figures],
             "overlays": [str(p) for p in paths.overlays]}

@@ -10,11 +10,14 @@ import typer
 from swarmpose.cli.app import app
 from swarmpose.cli.common import (
     DEFAULT_ALGO,
+    DEFAULT_FEATURE_CACHE,
+    FEATURE_CACHE_HELP,
     console,
     count,
     err_console,
     escape,
     fail_on_user_error,
+    feature_cache,
     interrupted_tracking,
     print_json,
 )
@@ -172,6 +175,7 @@ def track(
                                  help="Offline: smooth the poses over time with a Gaussian of this standard "
                                       "deviation in seconds, e.g. 0.05 (0: off). Less jitter; track.npz keeps the "
                                       "raw poses as raw_params."),
+    feature_cache_dir: str = typer.Option(DEFAULT_FEATURE_CACHE, "--feature-cache", help=FEATURE_CACHE_HELP),
     workers: int = typer.Option(None, min=1, help="Parallel worker processes (default: one per core, at most --runs); "
                                                   "each uses cores / workers numba threads."),
     scheduler: str = typer.Option(None, help="Run on a Dask cluster at this address, e.g. tcp://host:8786 "
@@ -223,7 +227,7 @@ def track(
                 name = seq.name
             out = Path("results") / default_results_name(name, cfg)
         summary = track_runs(seq, cfg, runs, out, resume=resume, workers=workers, scheduler=client,
-                             progress=progress)
+                             progress=progress, feature_cache=feature_cache(feature_cache_dir))
     except KeyboardInterrupt:
         raise interrupted_tracking(out) from None
     if max_frames is not None and summary["frames"] < max_frames:

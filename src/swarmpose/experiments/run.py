@@ -66,7 +66,8 @@ def suite_configs(name: str, *, seed: int = 0, downsample: int = 1,
 
 def run_suite(name: str, sequences: list[Path], out_dir: Path, *, runs: int = 5, seed: int = 0,
               workers: int | None = None, scheduler: Any = None, resume: bool = False,
-              downsample: int = 1, progress: bool = True, max_frames: int | None = None) -> dict[str, Any]:
+              downsample: int = 1, progress: bool = True, max_frames: int | None = None,
+              feature_cache: str | Path | None = None) -> dict[str, Any]:
     """Run suite ``name`` on the sequences and write ``out_dir/comparison.json`` and its report
     (:func:`swarmpose.report.comparison.write_comparison`: ``comparison.md``, two figures, ``comparison.html``)."""
     configs = suite_configs(name, seed=seed, downsample=downsample, max_frames=max_frames)
@@ -84,12 +85,13 @@ def run_suite(name: str, sequences: list[Path], out_dir: Path, *, runs: int = 5,
     with folder_lock(out_dir):  # one writer: a second compare (or --resume) on this folder is refused
         return _run_cells(name, configs, planned, out_dir, runs=runs, seed=seed, workers=workers,
                           scheduler=scheduler, resume=resume, progress=progress, max_frames=max_frames,
-                          fresh=fresh)
+                          fresh=fresh, feature_cache=feature_cache)
 
 
 def _run_cells(name: str, configs: list[tuple[Entry, TrackConfig]], planned: dict[Path, tuple[Any, Entry, TrackConfig]],
                out_dir: Path, *, runs: int, seed: int, workers: int | None, scheduler: Any, resume: bool,
-               progress: bool, max_frames: int | None, fresh: bool = False) -> dict[str, Any]:
+               progress: bool, max_frames: int | None, fresh: bool = False,
+               feature_cache: str | Path | None = None) -> dict[str, Any]:
     jobs: list[Job] = []
     cells: list[tuple[Entry, Path, Path, Any]] = []
     try:
@@ -101,8 +103,8 @@ def _run_cells(name: str, configs: list[tuple[Entry, TrackConfig]], planned: dic
             cell.mkdir(parents=True, exist_ok=True)
             write_config(cell, setup, runs, resume)
             cells.append((e, Path(seq), cell, setup))
-            jobs += [Job(str(seq), asdict(cfg), k, str(cell), resume, setup.progress_frames)
-                     for k in range(runs)]
+            jobs += [Job(str(seq), asdict(cfg), k, str(cell), resume, setup.progress_frames,
+                         None if feature_cache is None else str(feature_cache)) for k in range(runs)]
     except BaseException:
         close_client(scheduler)
         if fresh:  # a sequence or setting that fails before any tracking leaves no empty folders behind

@@ -56,7 +56,8 @@ def repeated(setup: TrackSetup, times: int) -> TrackSetup:
         gt_joints=setup.gt_joints[order], ik_params=setup.ik_params[order], ik_error_mm=setup.ik_error_mm[order])
 
 
-def bench_track(sequence: str | Path, config: TrackConfig, *, run: int = 0, repeat: int = 1) -> dict[str, Any]:
+def bench_track(sequence: str | Path, config: TrackConfig, *, run: int = 0, repeat: int = 1,
+                feature_cache: str | Path | None = None) -> dict[str, Any]:
     """Track one run of ``sequence`` (in this process, into a temporary folder) and time it by part.
 
     ``repeat``: play the tracked frames that many times, forwards and backwards (:func:`repeated`).
@@ -68,7 +69,7 @@ def bench_track(sequence: str | Path, config: TrackConfig, *, run: int = 0, repe
     with tempfile.TemporaryDirectory(prefix="swarmpose-bench-") as tmp:
         setup = repeated(prepare_track(sequence, config, Path(tmp)), repeat)
         t_setup = time.perf_counter() - t0
-        result = run_tracker(setup, run, Path(tmp))
+        result = run_tracker(setup, run, Path(tmp), feature_cache=feature_cache)
     # the time per frame along the run: a cost that grows with the recording shows as a rising last quarter
     quarter = max(1, len(result.seconds) // 4)
     first_q = float(result.seconds[:quarter].mean()) if len(result.seconds) else 0.0
@@ -98,5 +99,6 @@ def bench_track(sequence: str | Path, config: TrackConfig, *, run: int = 0, repe
         "evals_per_frame": int(result.evaluations.max()) if frames else 0,
         "d_mean_mm": result.errors.get("d_mean"),
         "setup_s": t_setup,
+        "feature_store": result.feature_store,  # frames whose features were read from the store, and computed
         "peak_rss_mb": _peak_rss_mb(),
     }

@@ -2,7 +2,8 @@
 
 Image fitnesses get :class:`swarmpose.features.FrameFeatures`: the stored silhouettes when the sequence has
 them (an imported recording's learned segmentation), else background subtraction; edge maps; and the
-detector's keypoints where the sequence carries them. Marker fitnesses get the frame's detections. Only the
+detector's keypoints where the sequence carries them. A feature store (:mod:`swarmpose.track.feature_store`)
+keeps the binary maps between runs. Marker fitnesses get the frame's detections. Only the
 tracked views (``track --views``) are included.
 """
 
@@ -25,10 +26,12 @@ MARKER_FITNESS = ("markers", "reprojection")
 
 def frame_observation(seq: Any, k: int, kind: str, downsample: int, backgrounds: Any,
                        feature_options: tuple[dict, dict] = ({}, {}), views: list[int] | None = None,
-                       keypoints: tuple[np.ndarray, np.ndarray] | None = None):
+                       keypoints: tuple[np.ndarray, np.ndarray] | None = None, store: Any = None):
     """One frame's observation; ``feature_options`` = :func:`swarmpose.features.parse_feature_options`'s pair;
     ``views``: the cameras tracked with (default all); ``keypoints``: the whole sequence's labelled keypoints
-    ``(T, C, 15, 2)`` and confidences ``(T, C, 15)`` when it has them (carried for the keypoint term)."""
+    ``(T, C, 15, 2)`` and confidences ``(T, C, 15)`` when it has them (carried for the keypoint term);
+    ``store``: a :class:`swarmpose.track.feature_store.FeatureStore` of this sequence, views and options, which
+    gives the frame's binary features when it has them and keeps them when they are computed here."""
     v = list(range(seq.n_views)) if views is None else list(views)
     cams = [seq.cameras[c] for c in v]
     if kind in MARKER_FITNESS:
@@ -39,23 +42,28 @@ def frame_observation(seq: Any, k: int, kind: str, downsample: int, backgrounds:
             raise DataError(f"{getattr(seq, 'path', seq)}: frame {k} has no 2D marker detections (needed by the "
                             f"{kind} fitness)")
         return MarkerFrame([markers[c] for c in v], cams)
-    from swarmpose.features import compute_features
+    from swarmpose.features import binary_features, features_from_binary
 
-    images = seq.images(k)
-    if images is None:
-        raise DataError(f"{getattr(seq, 'path', seq)}: frame {k} has no images (needed by the {kind} fitness)")
     sil_opts, edge_opts = feature_options
-    stored = seq.silhouettes(k)  # a learned segmentation imported with a recording, used as it is
-    if stored is None and backgrounds is None:
-        raise DataError(f"{getattr(seq, 'path', seq)}: has neither silhouettes nor background images (needed by the "
-                        f"{kind} fitness); import the recording with --silhouettes learned or median")
-    if len(v) != seq.n_views:
-        images = images[v]
-        stored = None if stored is None else stored[v]
-        backgrounds = None if backgrounds is None else np.asarray(backgrounds)[v]
     kp = None if keypoints is None else (keypoints[0][k][v], keypoints[1][k][v])
-    return compute_features(images, backgrounds, cams, downsample=downsample, silhouette_options=sil_opts,
-                            edge_options=edge_opts, silhouettes=stored, keypoints=kp)
+    maps = None if store is None else store.get(k)
+    if maps is None:
+        images = seq.images(k)
+        if images is None:
+            raise DataError(f"{getattr(seq, 'path', seq)}: frame {k} has no images (needed by the {kind} fitness)")
+        stored = seq.silhouettes(k)  # a learned segmentation imported with a recording, used as it is
+        if stored is None and backgrounds is None:
+            raise DataError(f"{getattr(seq, 'path', seq)}: has neither silhouettes nor background images (needed by "
+                            f"the {kind} fitness); import the recording with --silhouettes learned or median")
+        if len(v) != seq.n_views:
+            images = images[v]
+            stored = None if stored is None else stored[v]
+            backgrounds = None if backgrounds is None else np.asarray(backgrounds)[v]
+        maps = binary_features(images, backgrounds, silhouette_options=sil_opts, edge_options=edge_opts,
+                               silhouettes=stored)
+        if store is not None:
+            store.put(k, *maps)
+    return features_from_binary(*maps, cams, edge_options=edge_opts, downsample=downsample, keypoints=kp)
 
 
 def _lower_priority() -> None:

@@ -52,6 +52,7 @@ class Job:
     out_dir: str
     resume: bool = False
     frames: int = 0  # frames the run tracks (for the progress bar; 0 = unknown)
+    feature_cache: str | None = None  # the feature stores' folder (track.feature_store); None: none
 
 
 def resolve_sequence(source: str | Path, *, cache_dir: Path | None = None, progress: bool = True) -> Path | str:
@@ -162,7 +163,7 @@ def run_job(job: Job, progress: Callable[[int, int], None] | None = None) -> dic
     cfg = TrackConfig(**job.config)
     out = Path(job.out_dir)
     setup = prepare_track(job.sequence, cfg, out)
-    res = run_tracker(setup, job.run, out, resume=job.resume, progress=progress)
+    res = run_tracker(setup, job.run, out, resume=job.resume, progress=progress, feature_cache=job.feature_cache)
     return {"run": job.run, "out_dir": job.out_dir, **res.errors}
 
 
@@ -419,8 +420,10 @@ def _intervals(frame_times: np.ndarray) -> dict[str, float | None]:
 
 
 def track_runs(sequence: str | Path, config: TrackConfig, runs: int, out_dir: Path, *, resume: bool = False,
-               workers: int | None = None, scheduler: Any = None, progress: bool = True) -> dict[str, Any]:
-    """Track ``runs`` runs of one configuration and write ``out_dir`` (config, runs, summary)."""
+               workers: int | None = None, scheduler: Any = None, progress: bool = True,
+               feature_cache: str | Path | None = None) -> dict[str, Any]:
+    """Track ``runs`` runs of one configuration and write ``out_dir`` (config, runs, summary); ``feature_cache``:
+    the feature stores' folder (:mod:`swarmpose.track.feature_store`), None for none."""
     out_dir = Path(out_dir)
     check_results_folder(out_dir, sequence, config, runs, resume)  # before anything is written
     fresh = not out_dir.exists()
@@ -437,7 +440,7 @@ def track_runs(sequence: str | Path, config: TrackConfig, runs: int, out_dir: Pa
                 remove_unused_folder(out_dir)
             raise
         return _track_jobs(sequence, config, runs, out_dir, setup, resume=resume, workers=workers,
-                           scheduler=scheduler, progress=progress)
+                           scheduler=scheduler, progress=progress, feature_cache=feature_cache)
 
 
 def sum_recoveries(per_run: Sequence[dict[str, Any]]) -> dict[str, int]:
@@ -449,8 +452,10 @@ def sum_recoveries(per_run: Sequence[dict[str, Any]]) -> dict[str, int]:
 
 
 def _track_jobs(sequence: str | Path, config: TrackConfig, runs: int, out_dir: Path, setup: Any, *, resume: bool,
-                workers: int | None, scheduler: Any, progress: bool) -> dict[str, Any]:
-    jobs = [Job(str(sequence), asdict(config), k, str(out_dir), resume, setup.progress_frames)
+                workers: int | None, scheduler: Any, progress: bool,
+                feature_cache: str | Path | None = None) -> dict[str, Any]:
+    cache = None if feature_cache is None else str(feature_cache)
+    jobs = [Job(str(sequence), asdict(config), k, str(out_dir), resume, setup.progress_frames, cache)
             for k in range(runs)]
     per_run = run_jobs(jobs, workers=workers, scheduler=scheduler, progress=progress)
     if setup.has_ground_truth:

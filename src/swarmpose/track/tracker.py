@@ -44,6 +44,7 @@ from swarmpose.body.spec import Subject, load_spec
 from swarmpose.errors import ConfigError, DataError, FormatError
 from swarmpose.io.files import load_npz, read_json_object
 from swarmpose.metrics import joint_acceleration, track_errors, valid_frames
+from swarmpose.track.feature_store import FeatureStore
 from swarmpose.track.motion import parse_motion
 from swarmpose.track.observation import IMAGE_FITNESS, MARKER_FITNESS, Prefetcher, frame_observation
 from swarmpose.track.progress import RunProgress
@@ -538,6 +539,7 @@ class RunResult:
     #                                              which frames kept the backward pass's pose (backward_kept)
     #                                              or limbs of both passes (backward_mixed);
     #                                              with smoothing: the poses before it (raw_params)
+    feature_store: dict[str, Any] | None = None  # the feature store's folder, frames read from it and computed
 
     @property
     def recoveries(self) -> dict[str, int]:
@@ -571,6 +573,7 @@ def run_tracker(
     progress: Callable[[int, int], None] | None = None,
     stop_after: int | None = None,
     observe: Callable[[int, Any], Any] | None = None,
+    feature_cache: str | os.PathLike[str] | None = None,
 ) -> RunResult:
     """Track one run (``run`` selects the generator) and write ``out_dir/run_XXX/``.
 
@@ -578,6 +581,9 @@ def run_tracker(
     stays and ``resume=True`` continues from it). ``observe(k, observation)``, when given, receives
     each frame's observation (sequence frame ``k``) and returns the one to track against: the
     diagnostics in ``scripts/diagnose_tracking.py oracle`` use it to swap in ideal silhouettes or edges.
+    ``feature_cache``: the folder of the feature stores (:mod:`swarmpose.track.feature_store`): frames another
+    run has computed are read from it, the others computed and kept there (the results are the same); None:
+    every frame computed.
     With ``config.backward`` the whole forward pass is followed by :func:`swarmpose.track.step.backward_pass`
     (its own generator, spawned from the run's seed); ``RunResult.passes`` keeps the forward pass.
     """
@@ -638,9 +644,15 @@ def run_tracker(
     if getattr(algo, "keypoint_ik", False) and has_keypoints(seq):
         kp_joints = keypoint_joints(seq, setup.frame_indices, views=views)
 
+    features_store = None
+    if feature_cache is not None and cfg.fitness_kind in IMAGE_FITNESS:
+        cams = [seq.cameras[c] for c in views]
+        features_store = FeatureStore.for_sequence(feature_cache, setup.sequence_path, [c.name for c in cams],
+                                                   feature_options, (len(cams), cams[0].height, cams[0].width))
+
     def load(i: int) -> Any:  # on the prefetch thread: frame i + 1 is read while frame i is tracked
         return frame_observation(seq, int(setup.frame_indices[i]), cfg.fitness_kind, cfg.downsample, backgrounds,
-                                 feature_options, views, keypoints)
+                                 feature_options, views, keypoints, features_store)
 
     prefetch = Prefetcher(load, T if stop_after is None else min(T, stop_after))
     search = FrameSearch(model=model, algo=algo, fitness=fitness, motion=motion, motion_mask=motion_mask,
@@ -708,7 +720,10 @@ def run_tracker(
     joints = model.joints15(params[:done]) if done else np.zeros((0, 15, 3))
     result = RunResult(run=run, params=params[:done], joints=joints, scores=scores[:done],
                        evaluations=evals[:done], seconds=seconds[:done], recovered=recovered[:done],
-                       part_seconds={k: round(v, 6) for k, v in timer.seconds.items()}, passes=passes)
+                       part_seconds={k: round(v, 6) for k, v in timer.seconds.items()}, passes=passes,
+                       feature_store=None if features_store is None else
+                       {"folder": str(features_store.folder), "read": features_store.read,
+                        "computed": features_store.computed})
     if done == T:
         if setup.has_ground_truth:
             errs = track_errors(joints, setup.gt_joints)  # frames without valid ground truth are not scored
@@ -718,7 +733,7 @@ def run_tracker(
         result.errors = {**error_fields, "ground_truth": setup.has_ground_truth, "frames_per_s": result.frames_per_s,
                          "evals_per_frame": int(evals.max()), "ik_floor_mm": setup.ik_floor_mm,
                          "recoveries": result.recoveries, "part_seconds": result.part_seconds,
-                         "frames_timed": int(done - start_k),
+                         "frames_timed": int(done - start_k), "feature_store": result.feature_store,
                          "acceleration_mm_s2": joint_acceleration(joints, setup.frame_times),
                          "gt_acceleration_mm_s2": (joint_acceleration(setup.gt_joints, setup.frame_times)
                                                    if setup.has_ground_truth else None)}
