@@ -9,7 +9,7 @@ import numba as nb
 import numpy as np
 import pytest
 
-from swarmpose.fitness.threads import BatchThreads, store_release, wait_for_newer, wait_until_equal
+from swarmpose.fitness.threads import BatchThreads, fetch_add, store_release, wait_for_newer, wait_until_equal
 
 
 @nb.njit(nogil=True)
@@ -97,3 +97,75 @@ def test_waits_see_a_flag_set_by_another_thread():
     threading.Timer(0.01, lambda: flag.__setitem__(0, 3)).start()
     assert wait_until_equal(flag, 3, 10**9)  # bounded by the looks, ended by the flag
     assert wait_for_newer(flag, 2, 1, np.zeros(0, np.int64), 0)
+
+
+@nb.njit(nogil=True)
+def _claim_squares(claim, done, x, out, tid, me, spin):
+    while True:
+        i = fetch_add(claim, 0, 1)
+        if i >= x.shape[0]:
+            return
+        slow = 0.0
+        for _ in range(spin):  # work that takes time (its result is used, so it is not optimised away)
+            slow = slow * 0.5 + 1.0
+        out[i] = x[i] * x[i] + (slow - slow)
+        tid[i] = me
+        fetch_add(done, 0, 1)
+
+
+@nb.njit(nogil=True)
+def _claim_squares_go(go, seq, claim, done, x, out, tid, me, spin):
+    store_release(go, 0, seq)
+    _claim_squares(claim, done, x, out, tid, me, spin)
+
+
+def _share(bt, x, out, tid, spin):
+    claim, done = np.zeros(1, np.int64), np.zeros(1, np.int64)  # one pair per batch, as the backend's
+    bt.share(lambda: _claim_squares(claim, done, x, out, tid, 1, spin),
+             lambda go, seq: _claim_squares_go(go, seq, claim, done, x, out, tid, 0, spin), done, x.shape[0])
+    assert claim[0] >= x.shape[0]
+    return done
+
+
+@pytest.mark.parametrize("n", [2, 3])
+def test_shared_batches_run_every_item_once_whoever_claims_it(n):
+    """``share``: the threads claim items one at a time (an atomic counter); each item runs exactly once (its
+    result written once, by one thread), also when the workers come late or fall asleep between batches."""
+    bt = BatchThreads(n)
+    rng = np.random.default_rng(10 + n)
+    by_worker = 0
+    try:
+        for k in range(600):
+            size = int(rng.integers(1, 60))
+            x = rng.normal(size=size)
+            out = np.full(size, np.nan)
+            tid = np.full(size, -1, np.int64)
+            spin = 200_000 if k % 50 == 7 else 2000  # every item a few microseconds, now and then much slower
+            done = _share(bt, x, out, tid, spin)
+            if k % 100 == 99:
+                time.sleep(0.02)
+            np.testing.assert_array_equal(out, x * x)
+            assert np.all(tid >= 0) and done[0] == size
+            by_worker += int(np.count_nonzero(tid > 0))
+    finally:
+        bt.close()
+    assert by_worker > 0  # the workers did take part
+
+
+def test_fetch_add_counts_every_claim_once_across_threads():
+    counter, seen = np.zeros(1, np.int64), np.zeros(200_000, np.int64)
+
+    @nb.njit(nogil=True)
+    def take(counter, seen):
+        while True:
+            i = fetch_add(counter, 0, 1)
+            if i >= seen.shape[0]:
+                return
+            seen[i] += 1
+
+    ts = [threading.Thread(target=take, args=(counter, seen)) for _ in range(3)]
+    for t in ts:
+        t.start()
+    for t in ts:
+        t.join(timeout=60)
+    assert np.all(seen == 1) and counter[0] >= seen.shape[0]

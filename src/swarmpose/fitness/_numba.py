@@ -21,7 +21,7 @@ import numba as nb
 import numpy as np
 
 from swarmpose.body.kinematics import fk_pose_into
-from swarmpose.fitness.threads import store_release
+from swarmpose.fitness.threads import fetch_add, store_release
 from swarmpose.render._kernels import (
     axis_depth_at,
     clip_segment,
@@ -36,9 +36,9 @@ from swarmpose.render._kernels import (
 #: fitness/threads.py).
 #: numba's cache sees edits to this file only, so an edit there must change this line (or cached kernels keep
 #: running the old code); tests/test_numba_cache.py says when and gives the new value.
-INLINED_SOURCES_SHA1 = "c8eda21b119a0393"
+INLINED_SOURCES_SHA1 = "640c4e80bb36f54c"
 
-__all__ = ["eval_kernel", "eval_share", "eval_share_go", "row_prefix_sums"]
+__all__ = ["eval_claim", "eval_claim_go", "eval_kernel", "eval_share", "row_prefix_sums"]
 
 
 @nb.njit(cache=True, nogil=True)
@@ -187,6 +187,64 @@ def _region(k, nv, spacing, c, sil, poly, sides, axis, info, acc):
 
 
 @nb.njit(cache=True, nogil=True)
+def _measure_view(n, c, T, joint, start, end, semi_a, semi_b, scale, Rc, tc, cam, ctab, stab, near,
+                  prefix, sil, edges, edge_mask, top_cone, spacing, region_spacing, do_sil, do_edge, do_region,
+                  counts, sums, poly, sides, axis, info, bbox, orient, nvs, valid, cnt, bl, br, occ, t_in, t_out,
+                  acc, racc):
+    """Pose ``n`` (its joint transforms ``T``) in view ``c``: ``counts[n, c]`` and ``sums[n, c]``; the rest
+    is scratch."""
+    K = joint.shape[0]
+    H = edges.shape[1]
+    W = edges.shape[2]
+    for k in range(K):
+        nvs[k] = cone_outline(T, joint, start, end, semi_a, semi_b, scale, Rc[c], tc[c], cam[c],
+                              ctab, stab, near, k, poly, sides, axis, info, bbox, orient)
+        valid[k] = nvs[k] > 0
+    y_ = 0
+    p_ = 0
+    if do_sil:
+        y_, p_ = silhouette_counts(poly, nvs, valid, K, H, W, prefix, c, cnt, bl, br)
+    counts[n, c, 0] = y_
+    counts[n, c, 1] = p_
+    acc[:] = 0.0
+    if do_edge:
+        for k in range(K):
+            if not valid[k]:
+                continue
+            if edge_mask[k] and info[k, 0] == 1:
+                for sd in range(2):
+                    e1, e2, e3 = _edge_line(sides[k, sd, 0, 0], sides[k, sd, 0, 1], sides[k, sd, 0, 2],
+                                            sides[k, sd, 1, 0], sides[k, sd, 1, 1], sides[k, sd, 1, 2],
+                                            spacing, k, c, edges, valid, K, poly, nvs, bbox, axis,
+                                            orient, occ, t_in, t_out)
+                    acc[0] += e1
+                    acc[1] += e2
+                    acc[2] += e3
+            if k == top_cone:
+                _edge_arc(k, info[k, 1], info[k, 2], info[k, 3] == 1, spacing, c, edges, valid, K,
+                          poly, nvs, bbox, axis, orient, acc)
+    sums[n, c, 0] = acc[0]
+    sums[n, c, 1] = acc[1]
+    sums[n, c, 2] = acc[2]
+    racc[:] = 0.0
+    if do_region:
+        for k in range(K):
+            if valid[k]:
+                _region(k, nvs[k], region_spacing, c, sil, poly, sides, axis, info, racc)
+    sums[n, c, 3] = racc[0]
+    sums[n, c, 4] = racc[1]
+
+
+@nb.njit(cache=True, nogil=True)
+def _scratch(K, H, P):
+    """The per-thread scratch arrays of :func:`_measure_view`."""
+    return (np.empty((K, P, 3)), np.empty((K, 2, 2, 3)), np.empty((K, 2, 3)), np.empty((K, 4), np.int64),
+            np.empty((K, 4)), np.empty(K), np.empty(K, np.int64), np.empty(K, np.bool_), np.empty(H, np.int32),
+            np.empty((H, K), np.int32), np.empty((H, K), np.int32), np.empty(K, np.int64), np.empty(K),
+            np.empty(K), np.empty(3), np.empty(2))
+
+
+@nb.njit(cache=True, nogil=True)
 def eval_share(idx, poses, parents, offsets, rot_axis, rot_sign, rot_param, trans_param,
                joint, start, end, semi_a, semi_b, scale, Rc, tc, cam, ctab, stab, near,
                prefix, sil, edges, edge_mask, top_cone, spacing, region_spacing,
@@ -194,87 +252,69 @@ def eval_share(idx, poses, parents, offsets, rot_axis, rot_sign, rot_param, tran
     """The poses ``poses[idx]`` of the batch (one thread's share; ``idx (M,)`` int64): see
     :func:`eval_kernel` for the arguments; results go to ``counts[idx]``, ``sums[idx]``.
 
-    Releases the GIL (``nogil``), so Python threads can run shares in parallel
-    (:class:`swarmpose.fitness.backends.NumbaBackend` does, see there for why).
+    Releases the GIL (``nogil``), so Python threads can run shares in parallel.
     """
     C = Rc.shape[0]
     K = joint.shape[0]
     J = parents.shape[0]
     H = edges.shape[1]
-    W = edges.shape[2]
     P = 2 * ctab.shape[0] + 4
     mine = idx.shape[0]
     Ts = np.empty((mine, J, 3, 4))
     for i in range(mine):
         fk_pose_into(poses[idx[i]], parents, offsets, rot_axis, rot_sign, rot_param, trans_param, Ts[i])
-    poly = np.empty((K, P, 3))
-    sides = np.empty((K, 2, 2, 3))
-    axis = np.empty((K, 2, 3))
-    info = np.empty((K, 4), np.int64)
-    bbox = np.empty((K, 4))
-    orient = np.empty(K)
-    nvs = np.empty(K, np.int64)
-    valid = np.empty(K, np.bool_)
-    cnt = np.empty(H, np.int32)
-    bl = np.empty((H, K), np.int32)
-    br = np.empty((H, K), np.int32)
-    occ = np.empty(K, np.int64)
-    t_in = np.empty(K)
-    t_out = np.empty(K)
-    acc = np.empty(3)
-    racc = np.empty(2)
+    poly, sides, axis, info, bbox, orient, nvs, valid, cnt, bl, br, occ, t_in, t_out, acc, racc = _scratch(K, H, P)
     for c in range(C):  # views outside: one view's prefix sums and edge map stay in cache
         for i in range(mine):
-            n = idx[i]
-            T = Ts[i]
-            for k in range(K):
-                nvs[k] = cone_outline(T, joint, start, end, semi_a, semi_b, scale, Rc[c], tc[c], cam[c],
-                                      ctab, stab, near, k, poly, sides, axis, info, bbox, orient)
-                valid[k] = nvs[k] > 0
-            y_ = 0
-            p_ = 0
-            if do_sil:
-                y_, p_ = silhouette_counts(poly, nvs, valid, K, H, W, prefix, c, cnt, bl, br)
-            counts[n, c, 0] = y_
-            counts[n, c, 1] = p_
-            acc[:] = 0.0
-            if do_edge:
-                for k in range(K):
-                    if not valid[k]:
-                        continue
-                    if edge_mask[k] and info[k, 0] == 1:
-                        for sd in range(2):
-                            e1, e2, e3 = _edge_line(sides[k, sd, 0, 0], sides[k, sd, 0, 1], sides[k, sd, 0, 2],
-                                                    sides[k, sd, 1, 0], sides[k, sd, 1, 1], sides[k, sd, 1, 2],
-                                                    spacing, k, c, edges, valid, K, poly, nvs, bbox, axis,
-                                                    orient, occ, t_in, t_out)
-                            acc[0] += e1
-                            acc[1] += e2
-                            acc[2] += e3
-                    if k == top_cone:
-                        _edge_arc(k, info[k, 1], info[k, 2], info[k, 3] == 1, spacing, c, edges, valid, K,
-                                  poly, nvs, bbox, axis, orient, acc)
-            sums[n, c, 0] = acc[0]
-            sums[n, c, 1] = acc[1]
-            sums[n, c, 2] = acc[2]
-            racc[:] = 0.0
-            if do_region:
-                for k in range(K):
-                    if valid[k]:
-                        _region(k, nvs[k], region_spacing, c, sil, poly, sides, axis, info, racc)
-            sums[n, c, 3] = racc[0]
-            sums[n, c, 4] = racc[1]
+            _measure_view(idx[i], c, Ts[i], joint, start, end, semi_a, semi_b, scale, Rc, tc, cam, ctab, stab,
+                          near, prefix, sil, edges, edge_mask, top_cone, spacing, region_spacing, do_sil, do_edge,
+                          do_region, counts, sums, poly, sides, axis, info, bbox, orient, nvs, valid, cnt, bl, br,
+                          occ, t_in, t_out, acc, racc)
 
 
 @nb.njit(cache=True, nogil=True)
-def eval_share_go(go, seq, idx, poses, parents, offsets, rot_axis, rot_sign, rot_param, trans_param,
+def eval_claim(claim, done, poses, parents, offsets, rot_axis, rot_sign, rot_param, trans_param,
+               joint, start, end, semi_a, semi_b, scale, Rc, tc, cam, ctab, stab, near,
+               prefix, sil, edges, edge_mask, top_cone, spacing, region_spacing,
+               do_sil, do_edge, do_region, counts, sums):
+    """The batch's (view, pose) items claimed one at a time, shared with other threads running the same
+    function: item ``u`` is pose ``u % N`` in view ``u // N`` (views outside, as :func:`eval_share`); it is
+    claimed by ``fetch_add(claim, 0, 1)`` and counted in ``done[0]`` once its results are written. The results
+    are :func:`eval_share`'s, whichever thread measures which item. Releases the GIL."""
+    N = poses.shape[0]
+    C = Rc.shape[0]
+    K = joint.shape[0]
+    J = parents.shape[0]
+    H = edges.shape[1]
+    P = 2 * ctab.shape[0] + 4
+    Ts = np.empty((N, J, 3, 4))
+    have = np.zeros(N, np.bool_)  # the joint transforms this thread has computed
+    poly, sides, axis, info, bbox, orient, nvs, valid, cnt, bl, br, occ, t_in, t_out, acc, racc = _scratch(K, H, P)
+    while True:
+        u = fetch_add(claim, 0, 1)
+        if u >= N * C:
+            return
+        c = u // N
+        n = u - c * N
+        if not have[n]:
+            fk_pose_into(poses[n], parents, offsets, rot_axis, rot_sign, rot_param, trans_param, Ts[n])
+            have[n] = True
+        _measure_view(n, c, Ts[n], joint, start, end, semi_a, semi_b, scale, Rc, tc, cam, ctab, stab, near,
+                      prefix, sil, edges, edge_mask, top_cone, spacing, region_spacing, do_sil, do_edge, do_region,
+                      counts, sums, poly, sides, axis, info, bbox, orient, nvs, valid, cnt, bl, br, occ, t_in,
+                      t_out, acc, racc)
+        fetch_add(done, 0, 1)
+
+
+@nb.njit(cache=True, nogil=True)
+def eval_claim_go(go, seq, claim, done, poses, parents, offsets, rot_axis, rot_sign, rot_param, trans_param,
                   joint, start, end, semi_a, semi_b, scale, Rc, tc, cam, ctab, stab, near,
                   prefix, sil, edges, edge_mask, top_cone, spacing, region_spacing,
                   do_sil, do_edge, do_region, counts, sums):
-    """:func:`eval_share` after ``go[0] = seq``, set once the GIL is released: a worker of
-    :class:`swarmpose.fitness.threads.BatchThreads` that sees it starts on its chunk without waiting for the GIL."""
+    """:func:`eval_claim` after ``go[0] = seq``, set once the GIL is released: a worker of
+    :class:`swarmpose.fitness.threads.BatchThreads` that sees it starts claiming without waiting for the GIL."""
     store_release(go, 0, seq)
-    eval_share(idx, poses, parents, offsets, rot_axis, rot_sign, rot_param, trans_param,
+    eval_claim(claim, done, poses, parents, offsets, rot_axis, rot_sign, rot_param, trans_param,
                joint, start, end, semi_a, semi_b, scale, Rc, tc, cam, ctab, stab, near,
                prefix, sil, edges, edge_mask, top_cone, spacing, region_spacing,
                do_sil, do_edge, do_region, counts, sums)

@@ -253,12 +253,12 @@ class NumbaBackend(_BackendBase):
     model : BodyModel
     n_rim, near : see :func:`swarmpose.render.project_cones`.
     threads : {"pool", "prange", "serial"}, default "pool"
-        How the batch is spread over the cores. ``"pool"``: the batch is cut into one chunk per
-        thread, claimed by ``numba.get_num_threads()`` threads (the calling one and workers,
-        :class:`~swarmpose.fitness.threads.BatchThreads`), each running the GIL-free serial kernel
-        :func:`~swarmpose.fitness._numba.eval_share`; between batches the workers wait spinning (yielding
-        the core) for up to 2 ms and then sleep, and a chunk a late or preempted worker has not claimed is
-        run by the caller. ``"prange"``: numba's own parallel loop
+        How the batch is spread over the cores. ``"pool"``: ``numba.get_num_threads()`` threads (the calling
+        one and workers, :class:`~swarmpose.fitness.threads.BatchThreads`) each run the GIL-free kernel
+        :func:`~swarmpose.fitness._numba.eval_claim`, which claims the batch's (view, pose) items one at a
+        time with an atomic counter, so the threads finish together and a late or preempted worker takes
+        what is left; between batches the workers wait spinning (yielding the core) for up to 2 ms and then
+        sleep. ``"prange"``: numba's own parallel loop
         (:func:`~swarmpose.fitness._numba.eval_kernel`); with numba's default OpenMP layer its waiting
         threads spin without yielding, which starves the tracker's read-ahead of the next frame (features
         3 -> 26 ms per frame on the walk), and when other processes compete for the cores a batch took 5-10x
@@ -291,7 +291,7 @@ class NumbaBackend(_BackendBase):
 
     def measure(self, prepared: PreparedFrame, poses: np.ndarray, request: Request) -> Measurements:
         """Measurements of ``poses (N, D)`` (see :class:`Measurements`)."""
-        from swarmpose.fitness._numba import eval_kernel, eval_share, eval_share_go
+        from swarmpose.fitness._numba import eval_claim, eval_claim_go, eval_kernel, eval_share
 
         p = np.ascontiguousarray(poses, dtype=np.float64)
         N, C = p.shape[0], prepared.n_views
@@ -307,11 +307,13 @@ class NumbaBackend(_BackendBase):
         elif nth == 1:
             eval_share(np.arange(N), *args, counts, sums)
         else:
-            # one contiguous chunk per thread (finer chunks measured slower: each costs a call's set-up); the
-            # workers wait spinning between batches, so that a batch of 20 poses does not pay two thread wake-ups
-            self._batch_threads(numba.get_num_threads()).map(
-                N, lambda idx: eval_share(idx, *args, counts, sums),
-                lambda idx, go, seq: eval_share_go(go, seq, idx, *args, counts, sums))
+            # every thread claims (view, pose) items one at a time inside the kernel, so that a worker that
+            # starts late still takes its part; the workers wait spinning between batches, so that a batch of
+            # 20 poses does not pay two thread wake-ups
+            claim, done = np.zeros(1, np.int64), np.zeros(1, np.int64)
+            self._batch_threads(numba.get_num_threads()).share(
+                lambda: eval_claim(claim, done, *args, counts, sums),
+                lambda go, seq: eval_claim_go(go, seq, claim, done, *args, counts, sums), done, N * C)
         return Measurements.from_arrays(counts, sums)
 
 

@@ -27,7 +27,7 @@ from llvmlite import ir
 from numba.core import cgutils, types
 from numba.extending import intrinsic
 
-__all__ = ["SPIN_SUPPORTED", "BatchThreads", "load_acquire", "store_release", "wait_until_equal",
+__all__ = ["SPIN_SUPPORTED", "BatchThreads", "fetch_add", "load_acquire", "store_release", "wait_until_equal",
            "wait_for_newer"]
 
 #: ``sched_yield`` is POSIX: elsewhere the workers sleep between batches.
@@ -58,6 +58,19 @@ def store_release(typingctx, arr, idx, value):
         return context.get_dummy_value()
 
     return types.void(arr, idx, value), codegen
+
+
+@intrinsic
+def fetch_add(typingctx, arr, idx, value):
+    """``old = arr[idx]; arr[idx] += value`` as one atomic step (acquire-release); returns ``old`` (``arr``: int64)."""
+    def codegen(context, builder, sig, args):
+        aryty = sig.args[0]
+        ary = context.make_array(aryty)(context, builder, args[0])
+        ptr = cgutils.get_item_pointer(context, builder, aryty, ary, [args[1]], wraparound=False)
+        val = context.cast(builder, args[2], sig.args[2], aryty.dtype)
+        return builder.atomic_rmw("add", ptr, val, "acq_rel")
+
+    return arr.dtype(arr, idx, value), codegen
 
 
 @intrinsic
@@ -123,6 +136,13 @@ class _Batch:
             return self.finished == self.claimed == len(self.chunks)
 
 
+class _Shared:
+    """One call whose items every thread claims one at a time inside compiled code (:meth:`BatchThreads.share`)."""
+
+    def __init__(self, run: Callable[[], None]):
+        self.run = run
+
+
 class BatchThreads:
     """Chunks of a batch run by the calling thread and ``n - 1`` workers that spin for ``spin_us`` between
     batches before they sleep.
@@ -181,6 +201,24 @@ class BatchThreads:
                     while batch.finished != batch.claimed:
                         batch.all_done.wait()
 
+    def share(self, run: Callable[[], None], first: Callable[[np.ndarray, int], None], done: np.ndarray,
+              total: int) -> None:
+        """One batch whose ``total`` items every thread claims one at a time: ``run()`` claims and runs items
+        until none is left (without the GIL), adding 1 to ``done[0]`` (:func:`fetch_add`) after each;
+        ``first(go, seq)`` does the same on the calling thread after :func:`store_release` ``(go, 0, seq)``,
+        once it runs without the GIL. A late worker finds fewer items or none; returns when ``done[0]`` is
+        ``total``. The items are spread as they are claimed, so that the threads finish together."""
+        with self._serial:
+            with self._cond:
+                self._seq += 1
+                seq = self._seq
+                self._batch = _Shared(run)
+                self._cond.notify_all()  # a worker asleep (no system call when none is)
+            first(self.go, seq)
+            # the items the workers claimed and still run: each is short, wait spinning (without the GIL)
+            while not wait_until_equal(done, total, max(self.spin_looks, 1000)):
+                pass
+
     def _work(self) -> None:
         seen = 0
         while True:
@@ -196,6 +234,9 @@ class BatchThreads:
             if seq == seen or batch is None:
                 continue
             seen = seq
+            if isinstance(batch, _Shared):
+                batch.run()
+                continue
             while (chunk := batch.claim()) is not None:
                 batch.run(chunk)
                 batch.finish()
