@@ -34,8 +34,20 @@ def _map(bt, x, out, tid, delay=0.0):
     bt.map(x.shape[0], run, lambda idx, go, seq: _square_into_go(go, seq, idx, x, out, tid, 0))
 
 
+def _map_batch(bt, x, out, tid, slow):
+    _map(bt, x, out, tid, delay=0.002 if slow else 0.0)
+
+
+def _share_batch(bt, x, out, tid, slow):
+    done = _share(bt, x, out, tid, 200_000 if slow else 2000)  # every item a few µs, now and then much slower
+    assert done[0] == x.shape[0]
+
+
 @pytest.mark.parametrize("n", [2, 3])
-def test_every_item_once_over_many_batches(n):
+@pytest.mark.parametrize("dispatch", [_map_batch, _share_batch], ids=["chunks", "items claimed"])
+def test_every_item_once_over_many_batches(n, dispatch):
+    """``map`` (a chunk per thread) and ``share`` (items claimed one at a time with an atomic counter): each
+    item runs exactly once, by one thread, also when the workers come late or fall asleep between batches."""
     bt = BatchThreads(n)
     rng = np.random.default_rng(n)
     by_worker = 0
@@ -45,8 +57,8 @@ def test_every_item_once_over_many_batches(n):
             x = rng.normal(size=size)
             out = np.full(size, np.nan)
             tid = np.full(size, -1, np.int64)
-            # now and then the workers' chunks are slow, or the caller pauses (a worker falls asleep)
-            _map(bt, x, out, tid, delay=0.002 if k % 50 == 7 else 0.0)
+            # now and then the workers' items are slow, or the caller pauses (a worker falls asleep)
+            dispatch(bt, x, out, tid, k % 50 == 7)
             if k % 100 == 99:
                 time.sleep(0.02)
             np.testing.assert_array_equal(out, x * x)
@@ -125,31 +137,6 @@ def _share(bt, x, out, tid, spin):
              lambda go, seq: _claim_squares_go(go, seq, claim, done, x, out, tid, 0, spin), done, x.shape[0])
     assert claim[0] >= x.shape[0]
     return done
-
-
-@pytest.mark.parametrize("n", [2, 3])
-def test_shared_batches_run_every_item_once_whoever_claims_it(n):
-    """``share``: the threads claim items one at a time (an atomic counter); each item runs exactly once (its
-    result written once, by one thread), also when the workers come late or fall asleep between batches."""
-    bt = BatchThreads(n)
-    rng = np.random.default_rng(10 + n)
-    by_worker = 0
-    try:
-        for k in range(600):
-            size = int(rng.integers(1, 60))
-            x = rng.normal(size=size)
-            out = np.full(size, np.nan)
-            tid = np.full(size, -1, np.int64)
-            spin = 200_000 if k % 50 == 7 else 2000  # every item a few microseconds, now and then much slower
-            done = _share(bt, x, out, tid, spin)
-            if k % 100 == 99:
-                time.sleep(0.02)
-            np.testing.assert_array_equal(out, x * x)
-            assert np.all(tid >= 0) and done[0] == size
-            by_worker += int(np.count_nonzero(tid > 0))
-    finally:
-        bt.close()
-    assert by_worker > 0  # the workers did take part
 
 
 def test_fetch_add_counts_every_claim_once_across_threads():

@@ -36,7 +36,7 @@ from swarmpose.render._kernels import (
 #: fitness/threads.py).
 #: numba's cache sees edits to this file only, so an edit there must change this line (or cached kernels keep
 #: running the old code); tests/test_numba_cache.py says when and gives the new value.
-INLINED_SOURCES_SHA1 = "640c4e80bb36f54c"
+INLINED_SOURCES_SHA1 = "8d3688fa6feee228"
 
 __all__ = ["eval_claim", "eval_claim_go", "eval_kernel", "eval_share", "row_prefix_sums"]
 

@@ -34,13 +34,18 @@ __all__ = ["SPIN_SUPPORTED", "BatchThreads", "fetch_add", "load_acquire", "store
 SPIN_SUPPORTED = sys.platform != "win32"
 
 
+def _item_pointer(context, builder, sig, args):
+    """The pointer to ``arr[idx]`` (the intrinsics' first two arguments) and ``arr``'s element type."""
+    aryty = sig.args[0]
+    ary = context.make_array(aryty)(context, builder, args[0])
+    return cgutils.get_item_pointer(context, builder, aryty, ary, [args[1]], wraparound=False), aryty.dtype
+
+
 @intrinsic
 def load_acquire(typingctx, arr, idx):
     """``arr[idx]`` read with acquire ordering (an atomic load the compiler cannot hoist out of a loop)."""
     def codegen(context, builder, sig, args):
-        aryty = sig.args[0]
-        ary = context.make_array(aryty)(context, builder, args[0])
-        ptr = cgutils.get_item_pointer(context, builder, aryty, ary, [args[1]], wraparound=False)
+        ptr, _ = _item_pointer(context, builder, sig, args)
         return builder.load_atomic(ptr, "acquire", 8)
 
     return arr.dtype(arr, idx), codegen
@@ -50,11 +55,8 @@ def load_acquire(typingctx, arr, idx):
 def store_release(typingctx, arr, idx, value):
     """``arr[idx] = value`` with release ordering (``arr``: int64)."""
     def codegen(context, builder, sig, args):
-        aryty = sig.args[0]
-        ary = context.make_array(aryty)(context, builder, args[0])
-        ptr = cgutils.get_item_pointer(context, builder, aryty, ary, [args[1]], wraparound=False)
-        val = context.cast(builder, args[2], sig.args[2], aryty.dtype)
-        builder.store_atomic(val, ptr, "release", 8)
+        ptr, dtype = _item_pointer(context, builder, sig, args)
+        builder.store_atomic(context.cast(builder, args[2], sig.args[2], dtype), ptr, "release", 8)
         return context.get_dummy_value()
 
     return types.void(arr, idx, value), codegen
@@ -64,11 +66,8 @@ def store_release(typingctx, arr, idx, value):
 def fetch_add(typingctx, arr, idx, value):
     """``old = arr[idx]; arr[idx] += value`` as one atomic step (acquire-release); returns ``old`` (``arr``: int64)."""
     def codegen(context, builder, sig, args):
-        aryty = sig.args[0]
-        ary = context.make_array(aryty)(context, builder, args[0])
-        ptr = cgutils.get_item_pointer(context, builder, aryty, ary, [args[1]], wraparound=False)
-        val = context.cast(builder, args[2], sig.args[2], aryty.dtype)
-        return builder.atomic_rmw("add", ptr, val, "acq_rel")
+        ptr, dtype = _item_pointer(context, builder, sig, args)
+        return builder.atomic_rmw("add", ptr, context.cast(builder, args[2], sig.args[2], dtype), "acq_rel")
 
     return arr.dtype(arr, idx, value), codegen
 
