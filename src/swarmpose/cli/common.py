@@ -18,8 +18,10 @@ from rich.markup import escape
 from swarmpose.errors import SwarmposeError
 from swarmpose.io.jsonable import to_jsonable
 
-__all__ = ["DEFAULT_FEATURE_CACHE", "FEATURE_CACHE_HELP", "feature_cache", "Interrupted", "console", "err_console", "escape", "print_json", "fail_on_user_error", "to_jsonable", "count",
-           "interrupted_tracking", "saved_frames"]
+__all__ = [
+    "DEFAULT_FEATURE_CACHE", "FEATURE_CACHE_HELP", "feature_cache", "Interrupted", "console", "err_console",
+    "escape", "print_json", "fail_on_user_error", "to_jsonable", "count", "interrupted_tracking",
+    "saved_frames"]
 
 # soft_wrap: lines are not cut at 80 columns when stdout is a file or a pipe (tables still fit the width)
 console = Console(soft_wrap=True)

@@ -647,8 +647,12 @@ def run_tracker(
     features_store = None
     if feature_cache is not None and cfg.fitness_kind in IMAGE_FITNESS:
         cams = [seq.cameras[c] for c in views]
-        features_store = FeatureStore.for_sequence(feature_cache, setup.sequence_path, [c.name for c in cams],
-                                                   feature_options, (len(cams), cams[0].height, cams[0].width))
+        try:
+            features_store = FeatureStore.for_sequence(feature_cache, setup.sequence_path, [c.name for c in cams],
+                                                       feature_options, (len(cams), cams[0].height, cams[0].width))
+        except BaseException:  # a store folder that cannot be written: the error, with the sequence closed
+            seq.close()
+            raise
 
     def load(i: int) -> Any:  # on the prefetch thread: frame i + 1 is read while frame i is tracked
         return frame_observation(seq, int(setup.frame_indices[i]), cfg.fitness_kind, cfg.downsample, backgrounds,
