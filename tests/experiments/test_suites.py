@@ -168,3 +168,16 @@ def test_refined_height_variant(model):
     for bad, cfg in (("height=yes", base), ("height=silhouettes", optim.get("sppso", model=model, fps=20.0))):
         with pytest.raises(ConfigError, match="height=silhouettes"):
             apply_variant(cfg, bad)
+
+
+def test_refined_recovery_of_every_limb_with_the_frames_fitness(model):
+    base = optim.get("refined", model=model, fps=20.0)
+    v = apply_variant(base, "recovery=all+recovery_terms=fitness")
+    assert v.recovery["threshold"] == -1.0 and v.recovery["terms"] == "fitness"
+    assert apply_variant(v, "recovery_terms=distance").recovery["terms"] == "distance"
+    assert apply_variant(v, "recovery_margin=0.01").recovery["margin"] == 0.01
+    with pytest.raises(ConfigError, match="recovery_margin"):
+        apply_variant(v, "recovery_margin=-1")
+    for bad, cfg in (("recovery_terms=edges", base), ("recovery_terms=fitness", apply_variant(base, "recovery=off"))):
+        with pytest.raises(ConfigError, match="recovery_terms"):
+            apply_variant(cfg, bad)

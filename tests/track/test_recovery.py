@@ -60,3 +60,31 @@ def test_settings_are_checked():
     assert Recovery.from_settings({"threshold": 0.1}).threshold == 0.1
     with pytest.raises(ConfigError, match="unknown recovery"):
         Recovery.from_settings({"thresold": 0.1})
+
+
+def test_every_limb_searched_again_with_the_frames_fitness(setup):
+    """``recovery=all`` with ``recovery_terms=fitness``: every limb is searched again on every frame, scored by
+    the frame's own fitness, so that a limb off inside the silhouette (which the distance term cannot see) is
+    brought back too."""
+    from swarmpose.track.recovery import LIMBS
+
+    model, truth, fitness = setup
+    off = truth.copy()
+    off[model.param_index("r_elbow_flex")] += 0.8  # the forearm bent further
+    rec = Recovery(threshold=-1.0, terms="fitness")
+    out = rec.run(fitness, model, off, np.random.default_rng(1), HardPriors(model).valid, model.sigma * 3.0)
+    assert out.lost == list(LIMBS) and "right_arm" in out.recovered
+    assert fitness.evaluate(out.x[None])[0] > fitness.evaluate(off[None])[0]
+    assert arm_error(model, out.x, truth) < 0.75 * arm_error(model, off, truth)  # 195 -> 127 mm (seed 1)
+
+
+def test_a_margin_keeps_the_limb_unless_the_search_scores_clearly_higher(setup):
+    model, truth, fitness = setup
+    lost = truth.copy()
+    lost[model.param_index("r_shoulder_abd")] += np.radians(90)
+    kw = dict(rng=np.random.default_rng(0), constraint=HardPriors(model).valid, sigma=model.sigma * 3.0)
+    kept = Recovery(margin=10.0).run(fitness, model, lost, **kw)  # more than any score can gain
+    assert kept.lost == ["right_arm"] and kept.recovered == []
+    np.testing.assert_array_equal(kept.x, lost)
+    found = Recovery(margin=0.01).run(fitness, model, lost, **kw)  # a lost arm gains far more than 0.01
+    assert found.recovered == ["right_arm"] and arm_error(model, found.x, truth) < 100

@@ -121,6 +121,7 @@ def track(
     source: str = typer.Argument(None, help="Sequence folder or BVH clip (default: the shared walk, "
                                             "cmu_16_16_walk)."),
     algo: str = typer.Option(None, help="Algorithm (default: track's default; see `swarmpose algorithms`)."),
+    variant: str = typer.Option("", help="A variant of the algorithm, as `track --variant` takes it."),
     fps: float = typer.Option(20.0, help="Tracking rate, frames/s."),
     max_frames: int = typer.Option(None, "--max-frames", min=1, help="Only the first N frames."),
     seed: int = typer.Option(0, min=0, help="Seed of the run."),
@@ -138,7 +139,7 @@ def track(
     from swarmpose.track.runner import resolve_sequence
     from swarmpose.track.tracker import TrackConfig
 
-    cfg = TrackConfig(algo=algo or DEFAULT_ALGO, fps=fps, seed=seed, max_frames=max_frames)
+    cfg = TrackConfig(algo=algo or DEFAULT_ALGO, fps=fps, seed=seed, max_frames=max_frames, optim_variant=variant)
     seq = resolve_sequence(source or str(DEFAULT_CLIP), progress=not json_out)
     res = bench_track(seq, cfg, repeat=repeat, feature_cache=feature_cache(feature_cache_dir))
     if json_out:
@@ -146,7 +147,8 @@ def track(
         return
     from rich.table import Table
 
-    table = Table(title=f"{res['algo']} at {res['fps']:g} fps: {res['frames']} frames, "
+    table = Table(title=f"{res['algo']}{' --variant ' + res['variant'] if res['variant'] else ''} at "
+                        f"{res['fps']:g} fps: {res['frames']} frames, "
                         f"{res['frames_per_s']:.2f} frames/s ({res['ms_per_frame']:.1f} ms per frame), "
                         f"{res['evals_per_frame']} evaluations per frame")
     for col in ("part", "ms per frame", "share", "what"):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import Any
 
 from .base import ConfigError
@@ -24,7 +25,10 @@ def apply_variant(config: Any, variant: str) -> Any:
     * ``spread=K``: the search's per-parameter sigma times K.
     * ``refine=B`` (refined configurations): B pattern-search evaluations (0: none); ``recovery=off``: no
       loss detection; ``recovery=T``: a limb counts as lost above a disagreement of T (default 0.05; the
-      search per lost limb unchanged); ``height=silhouettes``: the predicted root height moves by the rise of
+      search per lost limb unchanged); ``recovery=all``: every limb searched again on every frame;
+      ``recovery_terms=fitness``: the limbs searched again and kept by the frame's own fitness (``distance``:
+      the silhouette distance term, the default); ``recovery_margin=M``: a searched-again limb kept only when
+      it scores more than M above the one it replaces; ``height=silhouettes``: the predicted root height moves by the rise of
       the silhouettes' triangulated centre since the frame before (``height=off``: not); several variants are
       joined by ``+`` (``apf=200x5+refine=0``).
     """
@@ -41,6 +45,21 @@ def apply_variant(config: Any, variant: str) -> Any:
             raise ConfigError(f"variant {variant!r}: expected height=silhouettes or height=off on a refined "
                               f"configuration ({config.name!r})")
         return dataclasses.replace(config, silhouette_height=value == "silhouettes")
+    if head == "recovery_margin":
+        try:
+            m = float(variant.partition("=")[2])
+        except ValueError:
+            m = float("nan")
+        if not getattr(config, "recovery", None) or not (math.isfinite(m) and m >= 0):
+            raise ConfigError(f"variant {variant!r}: expected recovery_margin=M, a score margin >= 0, on a "
+                              f"configuration with limb recovery ({config.name!r})")
+        return dataclasses.replace(config, recovery={**dict(config.recovery), "margin": m})
+    if head == "recovery_terms":
+        value = variant.partition("=")[2].strip()
+        if not getattr(config, "recovery", None) or value not in ("distance", "fitness"):
+            raise ConfigError(f"variant {variant!r}: expected recovery_terms=distance or recovery_terms=fitness on "
+                              f"a configuration with limb recovery ({config.name!r})")
+        return dataclasses.replace(config, recovery={**dict(config.recovery), "terms": value})
     if head in ("refine", "recovery"):
         if not hasattr(config, "refine_budget"):
             raise ConfigError(f"variant {variant!r} needs a refined configuration, {config.name!r} is not one")
@@ -51,6 +70,8 @@ def apply_variant(config: Any, variant: str) -> Any:
             return dataclasses.replace(config, refine_budget=int(value))
         if value == "off":
             return dataclasses.replace(config, recovery={})
+        if value == "all" and config.recovery:
+            return dataclasses.replace(config, recovery={**dict(config.recovery), "threshold": -1.0})
         try:
             threshold = float(value)
         except ValueError:

@@ -86,6 +86,7 @@ def bench_track(sequence: str | Path, config: TrackConfig, *, run: int = 0, repe
     return {
         "sequence": str(sequence),
         "algo": config.algo,
+        "variant": config.optim_variant,
         "fps": config.fps,
         "frames": frames,
         "repeat": int(repeat),

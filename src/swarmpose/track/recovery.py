@@ -55,7 +55,11 @@ class Recovery:
         Pattern-search evaluations on the limb's parameters after the box search.
     terms : str
         The fitness terms the search and the acceptance use: ``"distance"`` (default), the silhouette
-        distance term, which still rises towards an arm 50-100 mm away where the overlap terms are flat.
+        distance term, which still rises towards an arm 50-100 mm away where the overlap terms are flat;
+        ``"fitness"``: the frame's own fitness as the run scores it.
+    margin : float
+        The searched-again limb is kept only when it scores more than this above the limb it replaces (0:
+        any gain): a limb the fitness cannot tell from another place stays where the track had it.
     """
 
     threshold: float = 0.05
@@ -63,13 +67,14 @@ class Recovery:
     n_rounds: int = 5
     refine_budget: int = 100
     terms: str = "distance"
+    margin: float = 0.0
 
     @classmethod
     def from_settings(cls, settings: Mapping[str, Any]) -> Recovery | None:
         """From an optimiser configuration's ``recovery`` mapping (``None`` when it is empty)."""
         if not settings:
             return None
-        unknown = set(settings) - {"threshold", "n_samples", "n_rounds", "refine_budget", "terms"}
+        unknown = set(settings) - {"threshold", "n_samples", "n_rounds", "refine_budget", "terms", "margin"}
         if unknown:
             raise ConfigError(f"unknown recovery setting(s) {sorted(unknown)}")
         return cls(**dict(settings))
@@ -97,7 +102,9 @@ class Recovery:
         """
         x = np.array(x, dtype=np.float64)
         result = RecoveryResult(x=x)
-        options = {**dict(options or {}), "terms": self.terms}
+        # "fitness": the frame's own fitness (its terms as the run gives them); else the named terms
+        options = dict(options or {}) if self.terms == "fitness" else {**dict(options or {}), "terms": self.terms}
+        options = options or None
         limbs = self.limbs(model)
         for limb in self.lost(fitness, model, x):
             result.lost.append(limb)
@@ -122,7 +129,7 @@ class Recovery:
                     ps.tell(fitness.evaluate(ps.ask(), options))
                 result.evaluations += ps.evaluations
                 cand, score = ps.best.x, ps.best.score
-            if score > before:
+            if score > before + self.margin:
                 x = np.array(cand)
                 result.recovered.append(limb)
         result.x = x
