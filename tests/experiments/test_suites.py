@@ -178,6 +178,10 @@ def test_refined_recovery_of_every_limb_with_the_frames_fitness(model):
     assert apply_variant(v, "recovery_margin=0.01").recovery["margin"] == 0.01
     with pytest.raises(ConfigError, match="recovery_margin"):
         apply_variant(v, "recovery_margin=-1")
+    assert apply_variant(v, "recovery_in_turn=1").recovery["in_turn"] == 1
+    for bad in ("recovery_in_turn=0", "recovery_in_turn=x"):
+        with pytest.raises(ConfigError, match="recovery_in_turn"):
+            apply_variant(v, bad)
     for bad, cfg in (("recovery_terms=edges", base), ("recovery_terms=fitness", apply_variant(base, "recovery=off"))):
         with pytest.raises(ConfigError, match="recovery_terms"):
             apply_variant(cfg, bad)

@@ -88,3 +88,26 @@ def test_a_margin_keeps_the_limb_unless_the_search_scores_clearly_higher(setup):
     np.testing.assert_array_equal(kept.x, lost)
     found = Recovery(margin=0.01).run(fitness, model, lost, **kw)  # a lost arm gains far more than 0.01
     assert found.recovered == ["right_arm"] and arm_error(model, found.x, truth) < 100
+
+
+def test_limbs_looked_at_in_turn(setup):
+    """``in_turn=K``: K limbs per frame in turn, every limb once every 4/K frames; a lost limb outside the
+    frame's turn is left alone, inside it searched as before."""
+    from swarmpose.track.recovery import LIMBS
+
+    model, truth, fitness = setup
+    names = list(LIMBS)
+    one, two = Recovery(threshold=-1.0, in_turn=1), Recovery(threshold=-1.0, in_turn=2)
+    assert [one.looked_at(model, i) for i in range(5)] == [[n] for n in names + names[:1]]
+    assert [two.looked_at(model, i) for i in range(2)] == [names[:2], names[2:]]
+    assert Recovery(in_turn=4).looked_at(model, 3) == names == Recovery().looked_at(model, 3)
+    lost = truth.copy()
+    lost[model.param_index("r_shoulder_abd")] += np.radians(90)
+    kw = dict(rng=np.random.default_rng(0), constraint=HardPriors(model).valid, sigma=model.sigma * 3.0)
+    k = names.index("right_arm")
+    other = Recovery(in_turn=1).run(fitness, model, lost, position=k + 1, **kw)
+    assert other.lost == [] and other.evaluations == 0
+    np.testing.assert_array_equal(other.x, lost)
+    mine = Recovery(in_turn=1).run(fitness, model, lost, position=k, **kw)
+    assert mine.recovered == ["right_arm"] and arm_error(model, mine.x, truth) < 100
+    assert Recovery.from_settings({"in_turn": 2}).in_turn == 2

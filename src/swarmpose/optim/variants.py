@@ -28,7 +28,8 @@ def apply_variant(config: Any, variant: str) -> Any:
       search per lost limb unchanged); ``recovery=all``: every limb searched again on every frame;
       ``recovery_terms=fitness``: the limbs searched again and kept by the frame's own fitness (``distance``:
       the silhouette distance term, the default); ``recovery_margin=M``: a searched-again limb kept only when
-      it scores more than M above the one it replaces; ``height=silhouettes``: the predicted root height moves by the rise of
+      it scores more than M above the one it replaces; ``recovery_in_turn=K``: only K limbs looked at per frame,
+      in turn (with ``recovery=all`` each limb is searched every 4/K frames); ``height=silhouettes``: the predicted root height moves by the rise of
       the silhouettes' triangulated centre since the frame before (``height=off``: not); several variants are
       joined by ``+`` (``apf=200x5+refine=0``).
     """
@@ -54,6 +55,12 @@ def apply_variant(config: Any, variant: str) -> Any:
             raise ConfigError(f"variant {variant!r}: expected recovery_margin=M, a score margin >= 0, on a "
                               f"configuration with limb recovery ({config.name!r})")
         return dataclasses.replace(config, recovery={**dict(config.recovery), "margin": m})
+    if head == "recovery_in_turn":
+        value = variant.partition("=")[2].strip()
+        if not getattr(config, "recovery", None) or not value.isdigit() or int(value) < 1:
+            raise ConfigError(f"variant {variant!r}: expected recovery_in_turn=K, a whole number of limbs >= 1 per "
+                              f"frame, on a configuration with limb recovery ({config.name!r})")
+        return dataclasses.replace(config, recovery={**dict(config.recovery), "in_turn": int(value)})
     if head == "recovery_terms":
         value = variant.partition("=")[2].strip()
         if not getattr(config, "recovery", None) or value not in ("distance", "fitness"):

@@ -60,6 +60,11 @@ class Recovery:
     margin : float
         The searched-again limb is kept only when it scores more than this above the limb it replaces (0:
         any gain): a limb the fitness cannot tell from another place stays where the track had it.
+    in_turn : int
+        0: every lost limb is searched again on every frame. K >= 1: only K limbs per frame are looked at, in
+        turn by the frame's position (``position * K``, ``position * K + 1``, ... modulo the number of limbs), and
+        searched again when lost: with every limb counted as lost, each limb is searched every ``4 / K`` frames
+        at ``K / 4`` of the cost.
     """
 
     threshold: float = 0.05
@@ -68,13 +73,15 @@ class Recovery:
     refine_budget: int = 100
     terms: str = "distance"
     margin: float = 0.0
+    in_turn: int = 0
 
     @classmethod
     def from_settings(cls, settings: Mapping[str, Any]) -> Recovery | None:
         """From an optimiser configuration's ``recovery`` mapping (``None`` when it is empty)."""
         if not settings:
             return None
-        unknown = set(settings) - {"threshold", "n_samples", "n_rounds", "refine_budget", "terms", "margin"}
+        unknown = set(settings) - {"threshold", "n_samples", "n_rounds", "refine_budget", "terms", "margin",
+                                   "in_turn"}
         if unknown:
             raise ConfigError(f"unknown recovery setting(s) {sorted(unknown)}")
         return cls(**dict(settings))
@@ -88,17 +95,31 @@ class Recovery:
                 out[limb] = (np.array([names.index(c) for c in cones]), np.asarray(model.group(group)))
         return out
 
-    def lost(self, fitness: Any, model: Any, x: np.ndarray) -> list[str]:
-        """The limbs of pose ``x`` whose worst cone disagrees with the observation by more than ``threshold``."""
+    def looked_at(self, model: Any, position: int) -> list[str]:
+        """The limbs looked at on the frame at ``position``: every limb, or ``in_turn`` of them in turn."""
+        names = list(self.limbs(model))
+        if not self.in_turn or self.in_turn >= len(names):
+            return names
+        turn = {(position * self.in_turn + j) % len(names) for j in range(self.in_turn)}
+        return [name for k, name in enumerate(names) if k in turn]
+
+    def lost(self, fitness: Any, model: Any, x: np.ndarray, position: int = 0) -> list[str]:
+        """The limbs of pose ``x`` (looked at on the frame at ``position``) whose worst cone disagrees with the
+        observation by more than ``threshold``."""
+        limbs = self.limbs(model)
+        names = self.looked_at(model, position)
+        if self.threshold < 0:  # every limb counts as lost: nothing to measure
+            return names
         parts = fitness.part_agreement(np.asarray(x, np.float64)[None])[0]
-        return [limb for limb, (cones, _) in self.limbs(model).items() if parts[cones].max() > self.threshold]
+        return [limb for limb in names if parts[limbs[limb][0]].max() > self.threshold]
 
     def run(self, fitness: Any, model: Any, x: np.ndarray, rng: np.random.Generator,
             constraint: Callable[[np.ndarray], np.ndarray] | None, sigma: np.ndarray,
-            options: Mapping[str, Any] | None = None) -> RecoveryResult:
+            options: Mapping[str, Any] | None = None, position: int = 0) -> RecoveryResult:
         """Detect the lost limbs of ``x`` and search each again; returns the (possibly) improved pose.
 
-        ``sigma``: the search's per-parameter spread at this frame rate (the polishing step is half of it).
+        ``sigma``: the search's per-parameter spread at this frame rate (the polishing step is half of it);
+        ``position``: the frame's position in the sequence (which limbs are looked at, with ``in_turn``).
         """
         x = np.array(x, dtype=np.float64)
         result = RecoveryResult(x=x)
@@ -106,7 +127,7 @@ class Recovery:
         options = dict(options or {}) if self.terms == "fitness" else {**dict(options or {}), "terms": self.terms}
         options = options or None
         limbs = self.limbs(model)
-        for limb in self.lost(fitness, model, x):
+        for limb in self.lost(fitness, model, x, position):
             result.lost.append(limb)
             mask = np.zeros(x.size, bool)
             mask[limbs[limb][1]] = True

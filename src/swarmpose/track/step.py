@@ -160,7 +160,8 @@ class FrameSearch:
         recovered: list[str] = []
         if self.recovery is not None:
             with timer.part("recovery"):
-                rec = self.recovery.run(fitness, model, x, rng, self.constraint, self.algo.sigma, extra or None)
+                rec = self.recovery.run(fitness, model, x, rng, self.constraint, self.algo.sigma, extra or None,
+                                         position=i)
             evals += rec.evaluations
             if rec.recovered:
                 x = rec.x
