@@ -179,6 +179,12 @@ def test_refined_recovery_of_every_limb_with_the_frames_fitness(model):
     with pytest.raises(ConfigError, match="recovery_margin"):
         apply_variant(v, "recovery_margin=-1")
     assert apply_variant(v, "recovery_in_turn=1").recovery["in_turn"] == 1
+    g = apply_variant(v, "recovery_guard=silhouette")
+    assert g.recovery["guard"] == "silhouette" and apply_variant(g, "recovery_guard=off").recovery["guard"] == ""
+    assert apply_variant(v, "recovery_terms=silhouette").recovery["terms"] == "silhouette"
+    for bad in ("recovery_guard=edge", "recovery_terms=edges"):
+        with pytest.raises(ConfigError, match=bad.partition("=")[0]):
+            apply_variant(v, bad)
     for bad in ("recovery_in_turn=0", "recovery_in_turn=x"):
         with pytest.raises(ConfigError, match="recovery_in_turn"):
             apply_variant(v, bad)

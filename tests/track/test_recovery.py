@@ -111,3 +111,41 @@ def test_limbs_looked_at_in_turn(setup):
     mine = Recovery(in_turn=1).run(fitness, model, lost, position=k, **kw)
     assert mine.recovered == ["right_arm"] and arm_error(model, mine.x, truth) < 100
     assert Recovery.from_settings({"in_turn": 2}).in_turn == 2
+
+
+def test_a_silhouette_guard_keeps_only_limbs_the_silhouettes_accept(setup):
+    """``guard="silhouette"``: a searched limb is kept only when the silhouette overlap term does not fall; the lost
+    arm's search raises both terms and is kept, two more evaluations counted."""
+    model, truth, fitness = setup
+    lost = truth.copy()
+    lost[model.param_index("r_shoulder_abd")] += np.radians(90)
+    kw = dict(rng=np.random.default_rng(0), constraint=HardPriors(model).valid, sigma=model.sigma * 3.0)
+    plain = Recovery().run(fitness, model, lost, **kw)
+    kw["rng"] = np.random.default_rng(0)
+    guarded = Recovery(guard="silhouette").run(fitness, model, lost, **kw)
+    assert guarded.recovered == ["right_arm"] and guarded.evaluations == plain.evaluations + 2
+    np.testing.assert_array_equal(guarded.x, plain.x)
+    sil = fitness.evaluate(np.stack([lost, guarded.x]), {"terms": "silhouette"})
+    assert sil[1] > sil[0]
+
+
+def test_the_guard_refuses_a_limb_the_silhouettes_score_lower(setup):
+    """A searched limb that wins on the frame's score but loses on the silhouettes is refused. A fitness built for
+    the test: its full score prefers the right shoulder at +1 rad, its silhouette term the shoulder where it is."""
+    model, truth, _ = setup
+    k = model.param_index("r_shoulder_abd")
+
+    class Split:
+        def evaluate(self, poses, options=None):
+            want = truth[k] if (options or {}).get("terms") == "silhouette" else truth[k] + 1.0
+            return -((np.asarray(poses)[:, k] - want) ** 2)
+
+    kw = dict(rng=np.random.default_rng(0), constraint=None, sigma=model.sigma * 3.0)
+    free = Recovery(threshold=-1.0, terms="fitness", in_turn=1).run(Split(), model, truth, position=1, **kw)
+    assert free.recovered == ["right_arm"] and abs(free.x[k] - truth[k] - 1.0) < 0.1
+    kw["rng"] = np.random.default_rng(0)
+    guarded = Recovery(threshold=-1.0, terms="fitness", in_turn=1, guard="silhouette").run(Split(), model, truth,
+                                                                                           position=1, **kw)
+    assert guarded.lost == ["right_arm"] and guarded.recovered == []
+    assert guarded.evaluations == free.evaluations + 2
+    np.testing.assert_array_equal(guarded.x, truth)

@@ -27,8 +27,9 @@ def apply_variant(config: Any, variant: str) -> Any:
       loss detection; ``recovery=T``: a limb counts as lost above a disagreement of T (default 0.05; the
       search per lost limb unchanged); ``recovery=all``: every limb searched again on every frame;
       ``recovery_terms=fitness``: the limbs searched again and kept by the frame's own fitness (``distance``:
-      the silhouette distance term, the default); ``recovery_margin=M``: a searched-again limb kept only when
-      it scores more than M above the one it replaces; ``recovery_in_turn=K``: only K limbs looked at per frame,
+      the silhouette distance term, the default; ``silhouette``: the silhouette overlap term alone); ``recovery_margin=M``: a searched-again limb kept only when
+      it scores more than M above the one it replaces; ``recovery_guard=silhouette``: a searched-again limb kept
+      only when the silhouette overlap term does not fall either; ``recovery_in_turn=K``: only K limbs looked at per frame,
       in turn (with ``recovery=all`` each limb is searched every 4/K frames); ``height=silhouettes``: the predicted root height moves by the rise of
       the silhouettes' triangulated centre since the frame before (``height=off``: not); several variants are
       joined by ``+`` (``apf=200x5+refine=0``).
@@ -55,6 +56,12 @@ def apply_variant(config: Any, variant: str) -> Any:
             raise ConfigError(f"variant {variant!r}: expected recovery_margin=M, a score margin >= 0, on a "
                               f"configuration with limb recovery ({config.name!r})")
         return dataclasses.replace(config, recovery={**dict(config.recovery), "margin": m})
+    if head == "recovery_guard":
+        value = variant.partition("=")[2].strip()
+        if not getattr(config, "recovery", None) or value not in ("silhouette", "off"):
+            raise ConfigError(f"variant {variant!r}: expected recovery_guard=silhouette or recovery_guard=off on a "
+                              f"configuration with limb recovery ({config.name!r})")
+        return dataclasses.replace(config, recovery={**dict(config.recovery), "guard": "" if value == "off" else value})
     if head == "recovery_in_turn":
         value = variant.partition("=")[2].strip()
         if not getattr(config, "recovery", None) or not value.isdigit() or int(value) < 1:
@@ -63,9 +70,9 @@ def apply_variant(config: Any, variant: str) -> Any:
         return dataclasses.replace(config, recovery={**dict(config.recovery), "in_turn": int(value)})
     if head == "recovery_terms":
         value = variant.partition("=")[2].strip()
-        if not getattr(config, "recovery", None) or value not in ("distance", "fitness"):
-            raise ConfigError(f"variant {variant!r}: expected recovery_terms=distance or recovery_terms=fitness on "
-                              f"a configuration with limb recovery ({config.name!r})")
+        if not getattr(config, "recovery", None) or value not in ("distance", "fitness", "silhouette"):
+            raise ConfigError(f"variant {variant!r}: expected recovery_terms=distance, fitness or silhouette on a "
+                              f"configuration with limb recovery ({config.name!r})")
         return dataclasses.replace(config, recovery={**dict(config.recovery), "terms": value})
     if head in ("refine", "recovery"):
         if not hasattr(config, "refine_budget"):

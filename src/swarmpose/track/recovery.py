@@ -60,6 +60,10 @@ class Recovery:
     margin : float
         The searched-again limb is kept only when it scores more than this above the limb it replaces (0:
         any gain): a limb the fitness cannot tell from another place stays where the track had it.
+    guard : str
+        ``""``: the searched limb is kept on its score alone. ``"silhouette"``: it is kept only when the silhouette
+        overlap term does not fall either (two more evaluations per searched limb), so that a limb the edges
+        alone pull elsewhere (an arm folded over the head's outline) stays where the track had it.
     in_turn : int
         0: every lost limb is searched again on every frame. K >= 1: only K limbs per frame are looked at, in
         turn by the frame's position (``position * K``, ``position * K + 1``, ... modulo the number of limbs), and
@@ -73,6 +77,7 @@ class Recovery:
     refine_budget: int = 100
     terms: str = "distance"
     margin: float = 0.0
+    guard: str = ""
     in_turn: int = 0
 
     @classmethod
@@ -81,7 +86,7 @@ class Recovery:
         if not settings:
             return None
         unknown = set(settings) - {"threshold", "n_samples", "n_rounds", "refine_budget", "terms", "margin",
-                                   "in_turn"}
+                                   "guard", "in_turn"}
         if unknown:
             raise ConfigError(f"unknown recovery setting(s) {sorted(unknown)}")
         return cls(**dict(settings))
@@ -150,7 +155,12 @@ class Recovery:
                     ps.tell(fitness.evaluate(ps.ask(), options))
                 result.evaluations += ps.evaluations
                 cand, score = ps.best.x, ps.best.score
-            if score > before + self.margin:
+            keep = score > before + self.margin
+            if keep and self.guard:
+                sil = fitness.evaluate(np.stack([x, cand]), {**(options or {}), "terms": self.guard})
+                result.evaluations += 2
+                keep = bool(sil[1] >= sil[0])
+            if keep:
                 x = np.array(cand)
                 result.recovered.append(limb)
         result.x = x
