@@ -28,8 +28,9 @@ PAPER_BUDGETS = {
     "aapso": 5 * 80 * 10 + 30 * 10,  # Sharifi et al. 2017, sec. 4.2
     "aapso-fixed": 5 * 80 * 10 + 30 * 10,
 }
-#: Configurations beyond the papers and their budgets (base search + refinement; recovery only when a limb is lost).
-OWN_BUDGETS = {"refined": 200 * 6 + 200, "refined-keypoints": 200 * 6 + 200}
+#: Configurations beyond the papers and their budgets (base search + refinement; a lost limb's search not counted).
+OWN_BUDGETS = {"refined": 200 * 6 + 200, "refined-keypoints": 200 * 6 + 200,
+               "refined-limbs": 200 * 6 + 200 + 4 * (1 + 100 * 5 + 100 + 2)}  # + every limb searched, guarded
 BUDGETS = {**PAPER_BUDGETS, **OWN_BUDGETS}
 
 

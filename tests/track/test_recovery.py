@@ -149,3 +149,17 @@ def test_the_guard_refuses_a_limb_the_silhouettes_score_lower(setup):
     assert guarded.lost == ["right_arm"] and guarded.recovered == []
     assert guarded.evaluations == free.evaluations + 2
     np.testing.assert_array_equal(guarded.x, truth)
+
+
+def test_the_registry_counts_the_limbs_the_recovery_searches():
+    from swarmpose import optim
+    from swarmpose.optim.registry import RECOVERY_LIMBS
+    from swarmpose.track.recovery import LIMBS
+
+    assert RECOVERY_LIMBS == len(LIMBS)
+    model = load_model("balan31")
+    cfg = optim.get("refined-limbs", model=model, fps=20.0)
+    per_limb = 1 + Recovery().n_samples * Recovery().n_rounds + Recovery().refine_budget + 2
+    assert cfg.evals_per_frame == optim.get("refined", model=model, fps=20.0).evals_per_frame + len(LIMBS) * per_limb
+    assert Recovery.from_settings(cfg.recovery) == Recovery(threshold=-1.0, terms="fitness", guard="silhouette")
+    assert cfg.silhouette_height
