@@ -44,6 +44,8 @@ MEASURED: dict[str, Measured] = {
     # on the synthetic 2D marker detections, with the default (symmetric reprojection) fitness
     "aapso": Measured(14.8, 25.0, None, 5, _track("aapso", 25)),
     "aapso-fixed": Measured(15.2, 25.0, None, 5, "swarmpose compare markers-reprojection"),
-    # the default; the last entry of `swarmpose compare ablation --runs 2` (the same runs)
+    # the first entries of `swarmpose compare ablation --runs 2` (the same runs)
     "refined": Measured(24.8, 20.0, 3.1, 2, _track("refined", 20, runs=2)),
+    # the default; `swarmpose demo` tracks the same runs
+    "refined-limbs": Measured(20.2, 20.0, 1.5, 3, _track("refined-limbs", 20, runs=3)),
 }

@@ -565,8 +565,8 @@ REF_REFINED = ("beyond the papers: Deutscher & Reid's APF ([DR05] sec. 3, 6) wit
 
 
 def _refined(model: Any, fps: float) -> RefinedConfig:
-    """The default tracker: ``apf-dr05``'s search (200 x 6), a 200-evaluation pattern search on the same
-    fitness, and the tracker's recovery of lost limbs."""
+    """``apf-dr05``'s search (200 x 6), a 200-evaluation pattern search on the same fitness, and the tracker's
+    recovery of lost limbs (the base of the default, ``refined-limbs``)."""
     base = dataclasses.replace(_apf_dr05(model, fps), n_layers=6)
     return RefinedConfig(name="refined", reference=REF_REFINED, base=base, refine_budget=200, refine_step=0.5,
                          recovery={"threshold": 0.05, "n_samples": 100, "n_rounds": 5, "refine_budget": 100},
@@ -574,7 +574,7 @@ def _refined(model: Any, fps: float) -> RefinedConfig:
 
 
 def _refined_limbs(model: Any, fps: float) -> RefinedConfig:
-    """``refined`` with every limb searched again on every frame, scored and kept by the frame's own fitness when
+    """The default tracker: ``refined`` with every limb searched again on every frame, scored and kept by the frame's own fitness when
     the silhouette overlap term does not fall (a limb lost inside the silhouette is seen; one the edges alone pull
     elsewhere is not taken), and the predicted root height moved by the silhouettes' rise. The same as ``refined
     --variant height=silhouettes+recovery=all+recovery_terms=fitness+recovery_guard=silhouette``."""
@@ -686,12 +686,11 @@ register("apf-dr05", _apf_dr05, reference=REF_APF_DR05, evals_per_frame=2000,
          summary="Deutscher & Reid's annealed particle filter with adaptive diffusion and crossover "
                  "(200 x 10); the most accurate on silhouettes here")
 register("refined", _refined, reference=REF_REFINED, evals_per_frame=1400,
-         summary="the default: Deutscher & Reid's APF (200 x 6), a local pattern search (200), and lost limbs "
-                 "searched again over their joint limits")
+         summary="Deutscher & Reid's APF (200 x 6), a local pattern search (200), and lost limbs searched again "
+                 "over their joint limits")
 register("refined-limbs", _refined_limbs, reference=REF_REFINED, evals_per_frame=1400 + 4 * 603,
-         summary="refined with every limb searched again on every frame by the frame's fitness, kept when the "
-                 "silhouettes agree, and the root's height from the silhouettes: the most accurate, 2.2 times "
-                 "refined's time")
+         summary="the default: refined with every limb searched again on every frame by the frame's fitness, kept "
+                 "when the silhouettes agree, and the root's height from the silhouettes; 2.1 times refined's time")
 register("refined-keypoints", _refined_keypoints, reference=REF_REFINED, evals_per_frame=1400,
          summary="refined with a detector's body keypoints in the fitness (robust, confidence-weighted, left/right "
                  "swaps allowed): for imported recordings, which carry them")
