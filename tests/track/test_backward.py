@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from swarmpose.track.tracker import TrackConfig, prepare_track, run_tracker
 
@@ -191,3 +193,22 @@ def test_the_silhouettes_centre_rises_with_the_body_and_moves_the_predicted_heig
         fit.bind(demo_frame(model, x, cams, inflate=1.0, clutter=0, noise=0.0))
         rises.append(search._rise(20 + i))
     assert rises == [0.0, 0.0]  # a rise within the dead zone does not move the prediction
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), density=st.floats(0.0, 0.3), values=st.sampled_from([1, 255]))
+def test_the_silhouettes_centroids_are_the_pixels_mean(seed, density, values):
+    """The summed centroids equal the plain mean of the set pixels' coordinates, to the last digit (random masks
+    of 0/1 or 0/255, and a view that is one row of pixels)."""
+    from swarmpose.track.start import _pixel_sums
+
+    rng = np.random.default_rng(seed)
+    masks = ((rng.random((3, 37, 53)) < density) * values).astype(np.uint8)
+    masks[2, :, :] = 0
+    masks[2, 3, :40] = values
+    n, x, y = _pixel_sums(masks)
+    for i in range(3):
+        ys, xs = np.nonzero(masks[i])
+        assert n[i] == xs.size
+        if xs.size:
+            assert x[i] / n[i] == xs.mean() and y[i] / n[i] == ys.mean()

@@ -185,14 +185,23 @@ def silhouette_centre(seq: Any, k: int, views: list[int]) -> np.ndarray | None:
     return centre_of_silhouettes(stored[views], [seq.cameras[c] for c in views])
 
 
+def _pixel_sums(silhouettes: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per view of ``(C, H, W)`` masks: the number of set pixels and the sums of their x and y (int64)."""
+    b = silhouettes != 0
+    rows = np.count_nonzero(b, axis=2)  # (C, H)
+    cols = np.count_nonzero(b, axis=1)  # (C, W)
+    return (rows.sum(axis=1).astype(np.int64), cols @ np.arange(b.shape[2], dtype=np.int64),
+            rows @ np.arange(b.shape[1], dtype=np.int64))
+
+
 def centre_of_silhouettes(silhouettes: np.ndarray, cameras: list) -> np.ndarray | None:
     """The silhouettes' centroids ``(C, H, W)`` (one per camera; views with fewer than 50 pixels left out)
     triangulated: ``(3,)`` mm, or None when fewer than two views see anyone."""
     uv = np.full((1, len(cameras), 1, 2), np.nan)
-    for i in range(len(cameras)):
-        ys, xs = np.nonzero(silhouettes[i])
-        if xs.size >= 50:
-            uv[0, i, 0] = (xs.mean(), ys.mean())
+    n, x, y = _pixel_sums(np.asarray(silhouettes))
+    seen = n >= 50
+    uv[0, seen, 0, 0] = x[seen] / n[seen]  # exact integer sums: the same means as the pixels' coordinates' mean
+    uv[0, seen, 0, 1] = y[seen] / n[seen]
     centre = triangulate(list(cameras), uv)[0, 0]
     return centre if np.isfinite(centre).all() else None
 
