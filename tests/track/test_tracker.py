@@ -212,6 +212,28 @@ def test_observe_hook_sees_every_frame_and_its_observation_is_tracked(short_sequ
     assert np.all(blind.scores < plain.scores)  # nothing of the model overlaps an empty silhouette
 
 
+def test_blas_runs_on_one_thread_while_tracking(short_sequence):
+    """BLAS's own threads took the cores from the fitness's threads (the results are the same): a run limits
+    them to one and gives back the limit it found."""
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    def blas_threads():
+        return {i["filepath"]: i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"}
+
+    setup = prepare_track(short_sequence, TrackConfig(algo="sppso", fps=20.0, seed=2), None)
+    inside = []
+
+    def look(k, frame):
+        inside.append(blas_threads())
+        return frame
+
+    with threadpool_limits(limits=2, user_api="blas"):
+        before = blas_threads()
+        run_tracker(setup, 0, None, observe=look)
+        assert blas_threads() == before
+    assert inside and all(set(t.values()) == {1} for t in inside)
+
+
 def test_track_variant_option(short_sequence, tmp_path):
     """``swarmpose track --variant`` reaches the optimiser (its budget is recorded) and bad ones fail early."""
     from typer.testing import CliRunner
