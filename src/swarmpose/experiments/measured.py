@@ -32,20 +32,20 @@ def _track(algo: str, fps: int, runs: int = 5) -> str:
 
 
 MEASURED: dict[str, Measured] = {
-    "sppso": Measured(72.4, 20.0, 8.4, 5, _track("sppso", 20)),
+    "sppso": Measured(72.4, 20.0, 5.6, 5, _track("sppso", 20)),
     "sppso3": Measured(68.5, 20.0, None, 5, _track("sppso3", 20)),
     "pso-global": Measured(84.8, 20.0, None, 5, _track("pso-global", 20)),
     "hard2": Measured(87.4, 20.0, None, 5, _track("hard2", 20)),
     # thesis Fig. 6.14 runs the 12 hard partitions at 60 fps only, as the thesis-partitions suite does
     "hpso12": Measured(81.7, 60.0, 1.3, 5, _track("hpso12", 60)),
     "apf": Measured(85.4, 20.0, None, 5, _track("apf", 20)),
-    "apf-adaptive": Measured(50.0, 20.0, 5.0, 5, _track("apf-adaptive", 20)),
-    "apf-dr05": Measured(30.6, 20.0, 2.9, 5, _track("apf-dr05", 20)),
+    "apf-adaptive": Measured(50.0, 20.0, 6.1, 5, _track("apf-adaptive", 20)),
+    "apf-dr05": Measured(30.6, 20.0, 3.5, 5, _track("apf-dr05", 20)),
     # on the synthetic 2D marker detections, with the default (symmetric reprojection) fitness
     "aapso": Measured(14.8, 25.0, None, 5, _track("aapso", 25)),
     "aapso-fixed": Measured(15.2, 25.0, None, 5, "swarmpose compare markers-reprojection"),
     # the first entries of `swarmpose compare ablation --runs 2` (the same runs)
-    "refined": Measured(24.8, 20.0, 3.1, 2, _track("refined", 20, runs=2)),
+    "refined": Measured(24.8, 20.0, 4.1, 2, _track("refined", 20, runs=2)),
     # the default; `swarmpose demo` tracks the same runs
-    "refined-limbs": Measured(20.2, 20.0, 1.5, 3, _track("refined-limbs", 20, runs=3)),
+    "refined-limbs": Measured(20.2, 20.0, 1.9, 3, _track("refined-limbs", 20, runs=3)),
 }
