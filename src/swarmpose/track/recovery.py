@@ -100,9 +100,10 @@ class Recovery:
                 out[limb] = (np.array([names.index(c) for c in cones]), np.asarray(model.group(group)))
         return out
 
-    def looked_at(self, model: Any, position: int) -> list[str]:
-        """The limbs looked at on the frame at ``position``: every limb, or ``in_turn`` of them in turn."""
-        names = list(self.limbs(model))
+    def looked_at(self, model: Any, position: int, limbs: Mapping[str, Any] | None = None) -> list[str]:
+        """The limbs looked at on the frame at ``position``: every limb, or ``in_turn`` of them in turn (``limbs``:
+        :meth:`limbs` of ``model``, when already at hand)."""
+        names = list(self.limbs(model) if limbs is None else limbs)
         if not self.in_turn or self.in_turn >= len(names):
             return names
         turn = {(position * self.in_turn + j) % len(names) for j in range(self.in_turn)}
@@ -112,7 +113,7 @@ class Recovery:
         """The limbs of pose ``x`` (looked at on the frame at ``position``) whose worst cone disagrees with the
         observation by more than ``threshold``."""
         limbs = self.limbs(model)
-        names = self.looked_at(model, position)
+        names = self.looked_at(model, position, limbs)
         if self.threshold < 0:  # every limb counts as lost: nothing to measure
             return names
         parts = fitness.part_agreement(np.asarray(x, np.float64)[None])[0]

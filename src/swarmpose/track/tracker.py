@@ -564,6 +564,22 @@ def _make_fitness(setup: TrackSetup):
     return make_fitness(setup.config.fitness_kind, setup.model, backend=setup.config.backend)
 
 
+def _one_blas_thread(func: Callable[..., Any]) -> Callable[..., Any]:
+    """Run ``func`` with the linear algebra (BLAS) on one thread: the tracker's products are small (the APF's
+    diffusion, 200 x 200 by 200 x 31), and BLAS's own threads, waiting between them, took the cores from the
+    fitness's threads and from a second run (the results are the same to the last digit)."""
+
+    @functools.wraps(func)
+    def limited(*args: Any, **kwargs: Any) -> Any:
+        from threadpoolctl import threadpool_limits
+
+        with threadpool_limits(limits=1, user_api="blas"):
+            return func(*args, **kwargs)
+
+    return limited
+
+
+@_one_blas_thread
 def run_tracker(
     setup: TrackSetup,
     run: int,
@@ -575,31 +591,7 @@ def run_tracker(
     observe: Callable[[int, Any], Any] | None = None,
     feature_cache: str | os.PathLike[str] | None = None,
 ) -> RunResult:
-    """Track one run (``run`` selects the generator) and write ``out_dir/run_XXX/``.
-
-    The linear algebra (BLAS) runs on one thread meanwhile: its products here are small (the APF's diffusion,
-    200 x 200 by 200 x 31), and BLAS's own threads, waiting between them, took the cores from the fitness's
-    threads and from a second run (the results are the same to the last digit).
-    """
-    from threadpoolctl import threadpool_limits
-
-    with threadpool_limits(limits=1, user_api="blas"):
-        return _run_tracker(setup, run, out_dir, resume=resume, progress=progress, stop_after=stop_after,
-                            observe=observe, feature_cache=feature_cache)
-
-
-def _run_tracker(
-    setup: TrackSetup,
-    run: int,
-    out_dir: Path | None = None,
-    *,
-    resume: bool = False,
-    progress: Callable[[int, int], None] | None = None,
-    stop_after: int | None = None,
-    observe: Callable[[int, Any], Any] | None = None,
-    feature_cache: str | os.PathLike[str] | None = None,
-) -> RunResult:
-    """Track one run (``run`` selects the generator) and write ``out_dir/run_XXX/`` (:func:`run_tracker`).
+    """Track one run (``run`` selects the generator) and write ``out_dir/run_XXX/``, BLAS on one thread.
 
     ``stop_after`` ends the run after that many frames (used to test resuming; the progress file
     stays and ``resume=True`` continues from it). ``observe(k, observation)``, when given, receives
