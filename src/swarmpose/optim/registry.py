@@ -393,6 +393,9 @@ class RefinedConfig(OptimizerConfig):
     silhouette_height : bool
         The tracker moves the predicted root height by the rise of the silhouettes' triangulated centre since
         the frame before (an image fitness's observation); read by the tracker only.
+    turn_search : Mapping
+        Settings of the tracker's search of the body's heading (:mod:`swarmpose.track.turn`; :data:`TURN_SEARCH`),
+        read by the tracker only; empty: none.
     """
 
     base: OptimizerConfig | None = None
@@ -402,6 +405,7 @@ class RefinedConfig(OptimizerConfig):
     recovery: Mapping[str, Any] = field(default_factory=dict)
     keypoint_ik: bool = False
     silhouette_height: bool = False
+    turn_search: Mapping[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -413,17 +417,22 @@ class RefinedConfig(OptimizerConfig):
             raise ConfigError(f"{self.name}: refine_step must be > 0")
         object.__setattr__(self, "refine_options", frozen_options(self.refine_options))
         object.__setattr__(self, "recovery", frozen_options(self.recovery))
+        object.__setattr__(self, "turn_search", frozen_options(self.turn_search))
 
     @property
     def evals_per_frame(self) -> int:
-        """The search's and the refinement's evaluations, and the limbs' searches when every limb is searched on
-        every frame (a lost limb's search, only when one is lost, is not counted)."""
+        """The search's and the refinement's evaluations, the heading's search, and the limbs' searches when every
+        limb is searched on every frame (a lost limb's search, only when one is lost, is not counted)."""
         n = self.base.evals_per_frame + int(self.refine_budget)
         r = self.recovery
         if r and r.get("threshold", 0.05) < 0:
             limbs = min(int(r.get("in_turn") or RECOVERY_LIMBS), RECOVERY_LIMBS)
             n += limbs * (1 + int(r.get("n_samples", 100)) * int(r.get("n_rounds", 5)) + int(r.get("refine_budget", 100))
                           + (2 if r.get("guard") else 0))
+        t = self.turn_search
+        if t:
+            n += (1 + len(t["whole"]) + len(t["pelvis"]) + int(t["n_best"]) * int(t["budget"])
+                  + (2 if t.get("guard") else 0))
         return n
 
     def start(self, x0: Any, rng: np.random.Generator, constraint: Constraint | None = None,
@@ -556,6 +565,14 @@ def _apf_dr05(model: Any, fps: float) -> APFConfig:
         **base,
     )
 
+
+#: The heading's search of ``--variant turn=on`` (:mod:`swarmpose.track.turn`): the whole pose turned by these
+#: degrees, the pelvis alone by these, the best two polished by 150 pattern-search evaluations each, a turned pose
+#: kept only when the silhouette overlap term does not fall.
+TURN_SEARCH: Mapping[str, Any] = frozen_options({
+    "whole": (30.0, -30.0, 60.0, -60.0, 90.0, -90.0, 135.0, -135.0, 180.0),
+    "pelvis": (15.0, -15.0, 30.0, -30.0, 45.0, -45.0),
+    "n_best": 2, "budget": 150, "guard": "silhouette"})
 
 #: The limbs a refined configuration's recovery searches (``swarmpose.track.recovery.LIMBS``).
 RECOVERY_LIMBS = 4

@@ -31,7 +31,9 @@ def apply_variant(config: Any, variant: str) -> Any:
       it scores more than M above the one it replaces; ``recovery_guard=silhouette``: a searched-again limb kept
       only when the silhouette overlap term does not fall either; ``recovery_in_turn=K``: only K limbs looked at per frame,
       in turn (with ``recovery=all`` each limb is searched every 4/K frames); ``height=silhouettes``: the predicted root height moves by the rise of
-      the silhouettes' triangulated centre since the frame before (``height=off``: not); several variants are
+      the silhouettes' triangulated centre since the frame before (``height=off``: not); ``turn=on``: the body's
+      heading searched again on every frame (the pose and its pelvis alone turned, the best polished:
+      ``swarmpose.track.turn``, 330 evaluations); several variants are
       joined by ``+`` (``apf=200x5+refine=0``).
     """
     if not variant:
@@ -47,6 +49,14 @@ def apply_variant(config: Any, variant: str) -> Any:
             raise ConfigError(f"variant {variant!r}: expected height=silhouettes or height=off on a refined "
                               f"configuration ({config.name!r})")
         return dataclasses.replace(config, silhouette_height=value == "silhouettes")
+    if head == "turn":
+        value = variant.partition("=")[2].strip()
+        if not hasattr(config, "turn_search") or value not in ("on", "off"):
+            raise ConfigError(f"variant {variant!r}: expected turn=on or turn=off on a refined configuration "
+                              f"({config.name!r})")
+        from .registry import TURN_SEARCH
+
+        return dataclasses.replace(config, turn_search=TURN_SEARCH if value == "on" else {})
     if head == "recovery_margin":
         try:
             m = float(variant.partition("=")[2])

@@ -89,6 +89,7 @@ class FrameSearch:
     kp_joints: np.ndarray | None = None
     search_start: bool = False
     silhouette_height: bool = False
+    turn: Any = None  # a swarmpose.track.turn.TurnSearch
     _centre: tuple[int, np.ndarray | None] | None = field(default=None, init=False, repr=False)
 
     def note_centre(self, i: int, features: Any) -> tuple[int, np.ndarray | None] | None:
@@ -157,6 +158,13 @@ class FrameSearch:
         x = np.array(opt.best.x, dtype=np.float64)
         score = opt.best.score
         carry = opt.carry() if hasattr(opt, "carry") else None
+        if self.turn is not None:
+            with timer.part("recovery"):
+                turned = self.turn.run(fitness, model, x, self.constraint, self.algo.sigma, extra or None)
+            evals += turned.evaluations
+            if turned.turned:
+                x, score = turned.x, turned.score
+                carry = recentre(carry, x, [np.arange(model.n_params)], model.lower, model.upper)
         recovered: list[str] = []
         if self.recovery is not None:
             with timer.part("recovery"):

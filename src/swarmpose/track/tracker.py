@@ -60,6 +60,7 @@ from swarmpose.track.start import (
 )
 from swarmpose.track.step import FrameSearch, backward_pass
 from swarmpose.track.timing import PartTimer, TimedFitness
+from swarmpose.track.turn import TurnSearch
 
 LIMB_NAMES = tuple(LIMBS)
 
@@ -679,7 +680,9 @@ def run_tracker(
                          constraint=constraint, timer=timer, extra_options=extra_options, recovery=recovery,
                          kp_joints=kp_joints, search_start=setup.search_start,
                          silhouette_height=bool(getattr(algo, "silhouette_height", False))
-                         and cfg.fitness_kind in IMAGE_FITNESS)
+                         and cfg.fitness_kind in IMAGE_FITNESS,
+                         turn=TurnSearch.from_settings(getattr(algo, "turn_search", {}))
+                         if cfg.fitness_kind in IMAGE_FITNESS else None)
     if search.silhouette_height and start_k > 0:  # a resumed run: the rise into its first frame as in one run
         search.note_centre(start_k - 1, load(start_k - 1))
     try:

@@ -1,0 +1,152 @@
+"""The body's heading searched again each frame: the pose turned about the vertical through the pelvis.
+
+The pelvis and trunk cones are nearly round about the vertical, so the pelvis's heading is seen only through
+where the hips and the spine attach to it. A track can then fall behind a turn with both hips and the spine
+twisted to make up for it (``cmu_16_18_turn`` at 20 fps: the pelvis 45 degrees behind, both hips at their 45-degree
+rotation limits, the truth scoring higher on most of those frames), or lose a fast spin altogether
+(``cmu_131_03_hop``: 240 degrees in 18 frames, the track left facing 130 degrees off). The search's own
+steps never make a turn of the pelvis that keeps the legs and the trunk in place, so it is asked for directly:
+
+* the whole pose turned by each of :attr:`TurnSearch.whole` degrees (``pelvis_rz``, the root's first rotation,
+  is a turn about the world's vertical through the pelvis);
+* the pelvis alone turned by each of :attr:`TurnSearch.pelvis` degrees, the hips' and the spine's rotations
+  about their own long axes turned back by as much (exact when the thighs hang and the trunk stands upright;
+  the polish does the rest).
+
+The candidates are scored in one batch with the frame's fitness; the best :attr:`TurnSearch.n_best` are
+polished by a pattern search of every parameter, and the best polished pose replaces the frame's pose when it
+scores higher (and, with ``guard``, when the guard's terms do not fall either).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from swarmpose.errors import ConfigError
+from swarmpose.optim.refine import PatternSearch
+
+__all__ = ["TurnSearch", "TurnResult", "turn_candidates"]
+
+#: The parameters turned back when the pelvis alone turns: a joint's rotation about its own long axis (the
+#: last elementary rotation of the root's children in the shipped models) and its axis sign.
+_TWISTS = ("l_hip_rot", "r_hip_rot", "spine_twist")
+
+
+def _twist_signs(model: Any) -> list[tuple[int, float]]:
+    """(parameter index, sign) of the root's children's rotations about their ``z`` axis named in ``_TWISTS``:
+    the pelvis turned by ``d`` is made up for by ``param -= sign * d`` (``sign`` -1 for a ``-z`` axis)."""
+    root = next(j.name for j in model.spec.joints if j.parent is None)
+    out = []
+    for joint in model.spec.joints:
+        if joint.parent != root:
+            continue
+        for axis, param in joint.rotation:
+            if param in _TWISTS and axis in ("z", "-z"):
+                out.append((model.param_index(param), -1.0 if axis == "-z" else 1.0))
+    return out
+
+
+def turn_candidates(model: Any, x: np.ndarray, whole: tuple[float, ...], pelvis: tuple[float, ...]) -> np.ndarray:
+    """``(len(whole) + len(pelvis), D)``: ``x`` turned as a whole by each of ``whole`` degrees, then its pelvis
+    alone by each of ``pelvis`` degrees (module docstring), clipped into the limits."""
+    x = np.asarray(x, dtype=np.float64)
+    rz = model.param_index("pelvis_rz")
+    lower, upper = np.asarray(model.lower), np.asarray(model.upper)
+    d = np.radians(np.concatenate([np.asarray(whole, float), np.asarray(pelvis, float)]))
+    cands = np.repeat(x[None], d.size, axis=0)
+    cands[:, rz] = x[rz] + d
+    alone = np.arange(len(whole), d.size)
+    for k, sign in _twist_signs(model):
+        cands[alone, k] -= sign * d[alone]
+    return np.clip(cands, lower, upper)
+
+
+@dataclass
+class TurnResult:
+    """What one frame's turn search did: the pose (turned or not), its score when turned, the evaluations and
+    the degrees of the turn kept (0: none)."""
+
+    x: np.ndarray
+    score: float | None = None
+    evaluations: int = 0
+    turned: float = 0.0
+
+
+@dataclass(frozen=True)
+class TurnSearch:
+    """The turn search (module docstring).
+
+    Attributes
+    ----------
+    whole, pelvis : tuple of float
+        The turns of the whole pose and of the pelvis alone tried (degrees).
+    n_best : int
+        Candidates polished.
+    budget : int
+        Pattern-search evaluations per polished candidate (its step half the search's spread).
+    guard : str
+        ``""`` or fitness terms (``"silhouette"``) that must not fall either for a turned pose to be kept (two
+        evaluations).
+    """
+
+    whole: tuple[float, ...]
+    pelvis: tuple[float, ...]
+    n_best: int
+    budget: int
+    guard: str = ""
+
+    @classmethod
+    def from_settings(cls, settings: Mapping[str, Any]) -> TurnSearch | None:
+        """From an optimiser configuration's ``turn_search`` mapping (``None`` when it is empty)."""
+        if not settings:
+            return None
+        unknown = set(settings) - {"whole", "pelvis", "n_best", "budget", "guard"}
+        if unknown:
+            raise ConfigError(f"unknown turn search setting(s) {sorted(unknown)}")
+        s = dict(settings)
+        return cls(whole=tuple(map(float, s["whole"])), pelvis=tuple(map(float, s["pelvis"])),
+                   n_best=int(s["n_best"]), budget=int(s["budget"]), guard=str(s.get("guard", "")))
+
+    def __post_init__(self) -> None:
+        if self.n_best < 1 or self.budget < 1:
+            raise ConfigError(f"turn search: n_best and budget must be >= 1, got {self.n_best}, {self.budget}")
+        if self.n_best > len(self.whole) + len(self.pelvis):
+            raise ConfigError(f"turn search: n_best {self.n_best} is more than the {len(self.whole) + len(self.pelvis)} "
+                              "turns tried")
+
+    def run(self, fitness: Any, model: Any, x: np.ndarray, constraint: Callable[[np.ndarray], np.ndarray] | None,
+            sigma: np.ndarray, options: Mapping[str, Any] | None = None) -> TurnResult:
+        """Search the turns of ``x`` (scored with ``options``); returns the pose to go on from."""
+        x = np.array(x, dtype=np.float64)
+        cands = turn_candidates(model, x, self.whole, self.pelvis)
+        ok = np.ones(len(cands), bool) if constraint is None else np.asarray(constraint(cands), dtype=bool)
+        scores = np.nan_to_num(np.asarray(fitness.evaluate(np.vstack([x[None], cands[ok]]), options), float),
+                               nan=-np.inf)
+        result = TurnResult(x=x, evaluations=1 + int(ok.sum()))
+        here, turned = scores[0], scores[1:]
+        best_x, best_score, best_k = x, here, -1
+        idx = np.flatnonzero(ok)
+        step = 0.5 * np.asarray(sigma, dtype=np.float64)
+        for j in np.argsort(-turned)[: self.n_best]:
+            if not np.isfinite(turned[j]):
+                break
+            ps = PatternSearch(cands[idx[j]], step, self.budget, lower=model.lower, upper=model.upper,
+                               constraint=constraint)
+            while not ps.done:
+                ps.tell(fitness.evaluate(ps.ask(), options))
+            result.evaluations += ps.evaluations
+            if ps.best.score > best_score:
+                best_x, best_score, best_k = np.array(ps.best.x), float(ps.best.score), int(idx[j])
+        if best_k < 0:
+            return result
+        if self.guard:
+            g = fitness.evaluate(np.stack([x, best_x]), {**dict(options or {}), "terms": self.guard})
+            result.evaluations += 2
+            if not g[1] >= g[0]:
+                return result
+        degrees = (*self.whole, *self.pelvis)[best_k]
+        return TurnResult(x=best_x, score=best_score, evaluations=result.evaluations, turned=float(degrees))

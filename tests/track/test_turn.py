@@ -1,0 +1,111 @@
+"""The heading's search on a constructed frame: the body turned away, or its pelvis alone."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from swarmpose.body.model import load_model
+from swarmpose.body.priors import HardPriors
+from swarmpose.errors import ConfigError
+from swarmpose.fitness import make_fitness
+from swarmpose.fitness.scene import demo_cameras, demo_frame
+from swarmpose.optim import registry
+from swarmpose.optim.variants import apply_variant
+from swarmpose.track.turn import TurnSearch, turn_candidates
+
+
+@pytest.fixture(scope="module")
+def setup():
+    model = load_model("balan31")
+    pose = model.zero_pose()
+    pose[5] = 1000.0
+    for name, value in (("l_shoulder_abd", 0.4), ("r_shoulder_flex", 0.6), ("r_elbow_flex", 0.5),
+                        ("l_hip_flex", 0.5), ("l_knee_flex", 0.9), ("r_knee_flex", 0.3)):
+        pose[model.param_index(name)] = value
+    frame = demo_frame(model, pose, demo_cameras(4, width=322, height=242), rng=np.random.default_rng(3))
+    fitness = make_fitness("silhouette_edge", model).bind(frame)
+    return model, pose, fitness
+
+
+def search(**kw) -> TurnSearch:
+    return TurnSearch.from_settings({**registry.TURN_SEARCH, **kw})
+
+
+def joint_error(model, x, truth) -> float:
+    return float(np.linalg.norm(model.joints15(x[None])[0] - model.joints15(truth[None])[0], axis=1).mean())
+
+
+def test_a_whole_turn_rotates_every_joint_about_the_vertical_through_the_pelvis(setup):
+    model, pose, _ = setup
+    turned = turn_candidates(model, pose, (90.0,), ())[0]
+    j0, j1 = model.joint_positions(np.stack([pose, turned]))
+    pelvis = j0[0]
+    rot = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])  # 90 degrees about z
+    np.testing.assert_allclose(j1, (j0 - pelvis) @ rot.T + pelvis, atol=1e-6)
+
+
+def test_the_pelvis_alone_turns_with_the_legs_and_trunk_kept(setup):
+    model, pose, _ = setup
+    pose = pose.copy()
+    pose[model.param_index("l_hip_flex")] = 0.0  # exact with the thighs hanging (knees bent: the twist shows)
+    ix = model.joint_index
+    for degrees in (30.0, -35.0):  # within the spine's twist limits (40)
+        turned = turn_candidates(model, pose, (), (degrees,))[0]
+        j0, j1 = model.joint_positions(np.stack([pose, turned]))
+        # the hips' and the spine's own twists made up for the pelvis's turn: every segment below and above
+        # points where it did (the hips moved with the pelvis, so positions differ but directions do not)
+        for a, b in (("l_hip", "l_knee"), ("l_knee", "l_ankle"), ("r_hip", "r_knee"), ("r_knee", "r_ankle"),
+                     ("spine", "thorax"), ("thorax", "l_shoulder"), ("l_elbow", "l_wrist"), ("r_elbow", "r_wrist")):
+            np.testing.assert_allclose(j1[ix[b]] - j1[ix[a]], j0[ix[b]] - j0[ix[a]], atol=1e-6)
+        hips0, hips1 = j0[ix["l_hip"]] - j0[ix["r_hip"]], j1[ix["l_hip"]] - j1[ix["r_hip"]]
+        angle = np.degrees(np.arctan2(hips1[1], hips1[0]) - np.arctan2(hips0[1], hips0[0]))
+        assert angle == pytest.approx(degrees, abs=1e-6)  # while the pelvis turned
+
+
+def test_a_body_turned_away_is_turned_back(setup):
+    model, truth, fitness = setup
+    away = turn_candidates(model, truth, (-90.0,), ())[0]
+    assert joint_error(model, away, truth) > 150
+    out = search().run(fitness, model, away, HardPriors(model).valid, model.sigma * 3.0)
+    assert out.turned == 90.0
+    assert out.score > fitness.evaluate(away[None])[0]
+    assert joint_error(model, out.x, truth) < 20
+
+
+def test_a_pelvis_left_behind_is_turned_with_the_legs_kept(setup):
+    model, truth, fitness = setup
+    behind = turn_candidates(model, truth, (), (-30.0,))[0]
+    out = search().run(fitness, model, behind, HardPriors(model).valid, model.sigma * 3.0)
+    assert out.turned == 30.0
+    assert joint_error(model, out.x, truth) < 0.5 * joint_error(model, behind, truth)
+
+
+def test_the_pose_is_kept_when_no_turn_scores_higher(setup):
+    model, truth, fitness = setup
+    s = search(guard="")
+    out = s.run(fitness, model, truth, HardPriors(model).valid, model.sigma)
+    assert out.turned == 0.0 and out.score is None
+    np.testing.assert_array_equal(out.x, truth)
+    turns = len(s.whole) + len(s.pelvis)
+    assert turns + 1 < out.evaluations <= 1 + turns + s.n_best * s.budget
+
+
+def test_settings_and_the_variant():
+    assert TurnSearch.from_settings({}) is None
+    with pytest.raises(ConfigError, match="unknown turn search"):
+        TurnSearch.from_settings({**registry.TURN_SEARCH, "turns": 3})
+    with pytest.raises(ConfigError, match="n_best"):
+        search(n_best=0)
+    model = load_model("balan31")
+    cfg = registry.get("refined-limbs", model=model, fps=20)
+    on = apply_variant(cfg, "turn=on")
+    t = registry.TURN_SEARCH
+    assert dict(on.turn_search) == dict(t)
+    extra = 1 + len(t["whole"]) + len(t["pelvis"]) + t["n_best"] * t["budget"] + 2
+    assert on.evals_per_frame == cfg.evals_per_frame + extra
+    assert not apply_variant(on, "turn=off").turn_search
+    with pytest.raises(ConfigError, match="turn=on or turn=off"):
+        apply_variant(cfg, "turn=yes")
+    with pytest.raises(ConfigError, match="turn=on or turn=off"):
+        apply_variant(registry.get("sppso", model=model, fps=20), "turn=on")
