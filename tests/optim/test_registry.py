@@ -30,7 +30,8 @@ PAPER_BUDGETS = {
 }
 #: Configurations beyond the papers and their budgets (base search + refinement; a lost limb's search not counted).
 OWN_BUDGETS = {"refined": 200 * 6 + 200, "refined-keypoints": 200 * 6 + 200,
-               "refined-limbs": 200 * 6 + 200 + 4 * (1 + 100 * 5 + 100 + 2)}  # + every limb searched, guarded
+               "refined-limbs": 200 * 6 + 200 + 4 * (1 + 100 * 5 + 100 + 2),  # + every limb searched, guarded
+               "refined-heading": 200 * 6 + 200 + 4 * (1 + 100 * 5 + 100 + 2) + (1 + 15 + 2 * 150 + 2)}  # + 15 turns
 BUDGETS = {**PAPER_BUDGETS, **OWN_BUDGETS}
 
 

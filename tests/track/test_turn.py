@@ -109,3 +109,18 @@ def test_settings_and_the_variant():
         apply_variant(cfg, "turn=yes")
     with pytest.raises(ConfigError, match="turn=on or turn=off"):
         apply_variant(registry.get("sppso", model=model, fps=20), "turn=on")
+
+
+def test_refined_heading_is_refined_limbs_with_the_turn_search_and_the_heading_carried_on():
+    from swarmpose.track.motion import parse_motion
+
+    model = load_model("balan31")
+    limbs = registry.get("refined-limbs", model=model, fps=20)
+    heading = registry.get("refined-heading", model=model, fps=20)
+    on = apply_variant(limbs, "turn=on")
+    for f in ("base", "refine_budget", "refine_step", "recovery", "silhouette_height", "turn_search"):
+        assert repr(getattr(heading, f)) == repr(getattr(on, f)), f  # (configurations compare by identity)
+    assert heading.evals_per_frame == on.evals_per_frame
+    mask = parse_motion(registry.default_motion("refined-heading")).mask(model)
+    assert [model.param_names[i] for i in np.flatnonzero(mask)] == ["pelvis_rz", "pelvis_tx", "pelvis_ty"]
+    assert "pelvis_rz" not in registry.default_motion("refined-limbs")

@@ -600,6 +600,13 @@ def _refined_limbs(model: Any, fps: float) -> RefinedConfig:
                                recovery={**cfg.recovery, "threshold": -1.0, "terms": "fitness", "guard": "silhouette"})
 
 
+def _refined_heading(model: Any, fps: float) -> RefinedConfig:
+    """``refined-limbs`` with the body's heading searched again on every frame (:data:`TURN_SEARCH`); the tracker
+    also carries the heading on at its last velocity (:func:`default_motion`). The same as ``refined-limbs
+    --variant turn=on --motion constant-velocity@pelvis_tx+pelvis_ty+pelvis_rz``."""
+    return dataclasses.replace(_refined_limbs(model, fps), name="refined-heading", turn_search=TURN_SEARCH)
+
+
 #: Weight of the keypoint term in ``refined-keypoints``, chosen on the shared recording (cam04 held out, 20 fps,
 #: ``track --fitness-options keypoints=W`` with ``refined``, the shoulder and hip midpoints as thorax and pelvis):
 #: the held-out median joint error was 11.8 / 9.1 / 8.8 / 8.6 / 8.7 / 8.3 / 8.3 px (half resolution) at
@@ -708,6 +715,9 @@ register("refined", _refined, reference=REF_REFINED, evals_per_frame=1400,
 register("refined-limbs", _refined_limbs, reference=REF_REFINED, evals_per_frame=1400 + 4 * 603,
          summary="the default: refined with every limb searched again on every frame by the frame's fitness, kept "
                  "when the silhouettes agree, and the root's height from the silhouettes; 2.1 times refined's time")
+register("refined-heading", _refined_heading, reference=REF_REFINED, evals_per_frame=1400 + 4 * 603 + 318,
+         summary="refined-limbs with the body's heading searched again on every frame (the pose turned as a whole "
+                 "and its pelvis alone, the best polished) and carried on at its last turning speed")
 register("refined-keypoints", _refined_keypoints, reference=REF_REFINED, evals_per_frame=1400,
          summary="refined with a detector's body keypoints in the fitness (robust, confidence-weighted, left/right "
                  "swaps allowed): for imported recordings, which carry them")
@@ -739,8 +749,11 @@ def names() -> tuple[str, ...]:
 
 def default_motion(name: str) -> str:
     """The motion model ``swarmpose track --motion auto`` gives an algorithm: for ``refined`` the root's
-    horizontal position carried on at its last velocity (not its height: a jump turns at its top), for the
-    papers' configurations the thesis's zero velocity (sec. 5.3.2)."""
+    horizontal position carried on at its last velocity (not its height: a jump turns at its top), for
+    ``refined-heading`` its heading too (a spin goes on), for the papers' configurations the thesis's zero velocity
+    (sec. 5.3.2)."""
+    if name == "refined-heading":
+        return "constant-velocity@pelvis_tx+pelvis_ty+pelvis_rz"
     return "constant-velocity@pelvis_tx+pelvis_ty" if name.startswith("refined") else "zero-velocity"
 
 

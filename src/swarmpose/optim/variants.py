@@ -33,7 +33,7 @@ def apply_variant(config: Any, variant: str) -> Any:
       in turn (with ``recovery=all`` each limb is searched every 4/K frames); ``height=silhouettes``: the predicted root height moves by the rise of
       the silhouettes' triangulated centre since the frame before (``height=off``: not); ``turn=on``: the body's
       heading searched again on every frame (the pose and its pelvis alone turned, the best polished:
-      ``swarmpose.track.turn``, 330 evaluations); several variants are
+      ``swarmpose.track.turn``, 318 evaluations); several variants are
       joined by ``+`` (``apf=200x5+refine=0``).
     """
     if not variant:
