@@ -73,6 +73,17 @@ def test_a_body_turned_away_is_turned_back(setup):
     assert joint_error(model, out.x, truth) < 20
 
 
+def test_a_turn_is_kept_only_above_the_margin(setup):
+    model, truth, fitness = setup
+    away = turn_candidates(model, truth, (-90.0,), ())[0]
+    scores = fitness.evaluate(np.stack([away, truth]))
+    gain = scores[1] - scores[0]
+    assert gain > 0.01
+    for margin, turned in ((0.5 * gain, 90.0), (2.0 * gain, 0.0)):
+        out = search(margin=margin).run(fitness, model, away, HardPriors(model).valid, model.sigma * 3.0)
+        assert out.turned == turned, margin
+
+
 def test_a_pelvis_left_behind_is_turned_with_the_legs_kept(setup):
     model, truth, fitness = setup
     behind = turn_candidates(model, truth, (), (-30.0,))[0]
@@ -97,6 +108,8 @@ def test_settings_and_the_variant():
         TurnSearch.from_settings({**registry.TURN_SEARCH, "turns": 3})
     with pytest.raises(ConfigError, match="n_best"):
         search(n_best=0)
+    with pytest.raises(ConfigError, match="margin"):
+        search(margin=-0.1)
     model = load_model("balan31")
     cfg = registry.get("refined-limbs", model=model, fps=20)
     on = apply_variant(cfg, "turn=on")
@@ -105,15 +118,20 @@ def test_settings_and_the_variant():
     extra = 1 + len(t["whole"]) + len(t["pelvis"]) + t["n_best"] * t["budget"] + 2
     assert on.evals_per_frame == cfg.evals_per_frame + extra
     assert not apply_variant(on, "turn=off").turn_search
+    assert apply_variant(on, "turn_margin=0.005").turn_search["margin"] == 0.005
+    assert apply_variant(on, "turn_margin=0.005").evals_per_frame == on.evals_per_frame
+    for bad in ("turn_margin=-1", "turn_margin=x"):
+        with pytest.raises(ConfigError, match="turn_margin=M"):
+            apply_variant(on, bad)
+    with pytest.raises(ConfigError, match="turn=on first"):
+        apply_variant(cfg, "turn_margin=0.01")
     with pytest.raises(ConfigError, match="turn=on or turn=off"):
         apply_variant(cfg, "turn=yes")
     with pytest.raises(ConfigError, match="turn=on or turn=off"):
         apply_variant(registry.get("sppso", model=model, fps=20), "turn=on")
 
 
-def test_refined_heading_is_refined_limbs_with_the_turn_search_and_the_heading_carried_on():
-    from swarmpose.track.motion import parse_motion
-
+def test_refined_heading_is_refined_limbs_with_the_turn_search():
     model = load_model("balan31")
     limbs = registry.get("refined-limbs", model=model, fps=20)
     heading = registry.get("refined-heading", model=model, fps=20)
@@ -121,6 +139,4 @@ def test_refined_heading_is_refined_limbs_with_the_turn_search_and_the_heading_c
     for f in ("base", "refine_budget", "refine_step", "recovery", "silhouette_height", "turn_search"):
         assert repr(getattr(heading, f)) == repr(getattr(on, f)), f  # (configurations compare by identity)
     assert heading.evals_per_frame == on.evals_per_frame
-    mask = parse_motion(registry.default_motion("refined-heading")).mask(model)
-    assert [model.param_names[i] for i in np.flatnonzero(mask)] == ["pelvis_rz", "pelvis_tx", "pelvis_ty"]
-    assert "pelvis_rz" not in registry.default_motion("refined-limbs")
+    assert registry.default_motion("refined-heading") == registry.default_motion("refined-limbs")

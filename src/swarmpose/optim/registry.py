@@ -601,9 +601,8 @@ def _refined_limbs(model: Any, fps: float) -> RefinedConfig:
 
 
 def _refined_heading(model: Any, fps: float) -> RefinedConfig:
-    """``refined-limbs`` with the body's heading searched again on every frame (:data:`TURN_SEARCH`); the tracker
-    also carries the heading on at its last velocity (:func:`default_motion`). The same as ``refined-limbs
-    --variant turn=on --motion constant-velocity@pelvis_tx+pelvis_ty+pelvis_rz``."""
+    """``refined-limbs`` with the body's heading searched again on every frame (:data:`TURN_SEARCH`): the same as
+    ``refined-limbs --variant turn=on``."""
     return dataclasses.replace(_refined_limbs(model, fps), name="refined-heading", turn_search=TURN_SEARCH)
 
 
@@ -717,7 +716,7 @@ register("refined-limbs", _refined_limbs, reference=REF_REFINED, evals_per_frame
                  "when the silhouettes agree, and the root's height from the silhouettes; 2.1 times refined's time")
 register("refined-heading", _refined_heading, reference=REF_REFINED, evals_per_frame=1400 + 4 * 603 + 318,
          summary="refined-limbs with the body's heading searched again on every frame (the pose turned as a whole "
-                 "and its pelvis alone, the best polished) and carried on at its last turning speed")
+                 "and its pelvis alone, the best two polished)")
 register("refined-keypoints", _refined_keypoints, reference=REF_REFINED, evals_per_frame=1400,
          summary="refined with a detector's body keypoints in the fitness (robust, confidence-weighted, left/right "
                  "swaps allowed): for imported recordings, which carry them")
@@ -749,11 +748,8 @@ def names() -> tuple[str, ...]:
 
 def default_motion(name: str) -> str:
     """The motion model ``swarmpose track --motion auto`` gives an algorithm: for ``refined`` the root's
-    horizontal position carried on at its last velocity (not its height: a jump turns at its top), for
-    ``refined-heading`` its heading too (a spin goes on), for the papers' configurations the thesis's zero velocity
-    (sec. 5.3.2)."""
-    if name == "refined-heading":
-        return "constant-velocity@pelvis_tx+pelvis_ty+pelvis_rz"
+    horizontal position carried on at its last velocity (not its height: a jump turns at its top), for the
+    papers' configurations the thesis's zero velocity (sec. 5.3.2)."""
     return "constant-velocity@pelvis_tx+pelvis_ty" if name.startswith("refined") else "zero-velocity"
 
 

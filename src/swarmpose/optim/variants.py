@@ -33,7 +33,8 @@ def apply_variant(config: Any, variant: str) -> Any:
       in turn (with ``recovery=all`` each limb is searched every 4/K frames); ``height=silhouettes``: the predicted root height moves by the rise of
       the silhouettes' triangulated centre since the frame before (``height=off``: not); ``turn=on``: the body's
       heading searched again on every frame (the pose and its pelvis alone turned, the best polished:
-      ``swarmpose.track.turn``, 318 evaluations); several variants are
+      ``swarmpose.track.turn``, 318 evaluations); ``turn_margin=M``: a turned pose kept only when it scores
+      more than M above the frame's pose; several variants are
       joined by ``+`` (``apf=200x5+refine=0``).
     """
     if not variant:
@@ -57,6 +58,16 @@ def apply_variant(config: Any, variant: str) -> Any:
         from .registry import TURN_SEARCH
 
         return dataclasses.replace(config, turn_search=TURN_SEARCH if value == "on" else {})
+    if head == "turn_margin":
+        value = variant.partition("=")[2].strip()
+        try:
+            m = float(value)
+        except ValueError:
+            m = float("nan")
+        if not getattr(config, "turn_search", None) or not (math.isfinite(m) and m >= 0):
+            raise ConfigError(f"variant {variant!r}: expected turn_margin=M, a score margin >= 0, on a configuration "
+                              f"with the turn search ({config.name!r}: add turn=on first)")
+        return dataclasses.replace(config, turn_search={**dict(config.turn_search), "margin": m})
     if head == "recovery_margin":
         try:
             m = float(variant.partition("=")[2])

@@ -91,6 +91,8 @@ class TurnSearch:
     guard : str
         ``""`` or fitness terms (``"silhouette"``) that must not fall either for a turned pose to be kept (two
         evaluations).
+    margin : float
+        A turned pose is kept only when it scores more than this above the frame's pose.
     """
 
     whole: tuple[float, ...]
@@ -98,22 +100,26 @@ class TurnSearch:
     n_best: int
     budget: int
     guard: str = ""
+    margin: float = 0.0
 
     @classmethod
     def from_settings(cls, settings: Mapping[str, Any]) -> TurnSearch | None:
         """From an optimiser configuration's ``turn_search`` mapping (``None`` when it is empty)."""
         if not settings:
             return None
-        unknown = set(settings) - {"whole", "pelvis", "n_best", "budget", "guard"}
+        unknown = set(settings) - {"whole", "pelvis", "n_best", "budget", "guard", "margin"}
         if unknown:
             raise ConfigError(f"unknown turn search setting(s) {sorted(unknown)}")
         s = dict(settings)
         return cls(whole=tuple(map(float, s["whole"])), pelvis=tuple(map(float, s["pelvis"])),
-                   n_best=int(s["n_best"]), budget=int(s["budget"]), guard=str(s.get("guard", "")))
+                   n_best=int(s["n_best"]), budget=int(s["budget"]), guard=str(s.get("guard", "")),
+                   margin=float(s.get("margin", 0.0)))
 
     def __post_init__(self) -> None:
         if self.n_best < 1 or self.budget < 1:
             raise ConfigError(f"turn search: n_best and budget must be >= 1, got {self.n_best}, {self.budget}")
+        if not (np.isfinite(self.margin) and self.margin >= 0):
+            raise ConfigError(f"turn search: margin must be a score >= 0, got {self.margin}")
         if self.n_best > len(self.whole) + len(self.pelvis):
             raise ConfigError(f"turn search: n_best {self.n_best} is more than the {len(self.whole) + len(self.pelvis)} "
                               "turns tried")
@@ -128,7 +134,7 @@ class TurnSearch:
                                nan=-np.inf)
         result = TurnResult(x=x, evaluations=1 + int(ok.sum()))
         here, turned = scores[0], scores[1:]
-        best_x, best_score, best_k = x, here, -1
+        best_x, best_score, best_k = x, here + self.margin, -1
         idx = np.flatnonzero(ok)
         step = 0.5 * np.asarray(sigma, dtype=np.float64)
         for j in np.argsort(-turned)[: self.n_best]:
