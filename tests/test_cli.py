@@ -373,8 +373,8 @@ def test_algorithms_show_the_measured_walk_numbers_and_the_default():
     assert res.exit_code == 0, res.output
     data = json.loads(res.stdout)
     rows = {r["name"]: r for r in data["algorithms"]}
-    assert list(rows) == [r["name"] for r in describe()] and data["default"] == DEFAULT_ALGO == "refined-limbs"
-    assert [n for n, r in rows.items() if r["default"]] == ["refined-limbs"] and data["walk_clip"] == CLIP
+    assert list(rows) == [r["name"] for r in describe()] and data["default"] == DEFAULT_ALGO == "refined-heading"
+    assert [n for n, r in rows.items() if r["default"]] == ["refined-heading"] and data["walk_clip"] == CLIP
     assert set(MEASURED) <= set(rows)  # nothing measured for a name the registry does not have
     for name, r in rows.items():
         m = MEASURED.get(name)
@@ -393,7 +393,7 @@ def test_algorithms_show_the_measured_walk_numbers_and_the_default():
     assert "walk D_mean" in " ".join(text.split()) and "frames/s" in text
     lines = [[c.strip() for c in re.split(rf"[{_BOX}]", ln)[1:-1]] for ln in text.splitlines() if ln.startswith("│")]
     starts = {cells[0]: i for i, cells in enumerate(lines) if cells[0]}
-    assert set(rows) <= set(starts) and [c for c in (lines[starts["refined-limbs"] + 1][0],) if c] == ["(default)"]
+    assert set(rows) <= set(starts) and [c for c in (lines[starts["refined-heading"] + 1][0],) if c] == ["(default)"]
     for name, r in rows.items():  # D_mean and the rate below it, frames/s, or dashes
         first, second = lines[starts[name]], lines[starts[name] + 1]
         m = MEASURED.get(name)

@@ -30,7 +30,7 @@ err_console = Console(stderr=True, soft_wrap=True)
 F = TypeVar("F", bound=Callable[..., Any])
 
 #: The algorithm of `track`, `demo` and `bench track` when none is named.
-DEFAULT_ALGO = "refined-limbs"
+DEFAULT_ALGO = "refined-heading"
 
 #: `--feature-cache` of the commands that track: the folder of the feature stores (track.feature_store).
 DEFAULT_FEATURE_CACHE = "cache/features"

@@ -31,7 +31,7 @@ def demo(
     seed: int = typer.Option(0, min=0, help="Seed (>= 0); run k draws from SeedSequence(\\[seed, k])."),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object with the summary and paths."),
 ) -> None:
-    """Synthesise the walking clip (cached), track it with the default tracker (refined-limbs) at 20 fps, write
+    """Synthesise the walking clip (cached), track it with the default tracker (refined-heading) at 20 fps, write
     results and a report.
 
     Steps: render the clip's real motion capture into 4 HumanEva-like cameras (once; cached under

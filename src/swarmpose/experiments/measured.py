@@ -46,6 +46,7 @@ MEASURED: dict[str, Measured] = {
     "aapso-fixed": Measured(15.2, 25.0, None, 5, "swarmpose compare markers-reprojection"),
     # the first entries of `swarmpose compare ablation --runs 2` (the same runs)
     "refined": Measured(24.8, 20.0, 4.1, 2, _track("refined", 20, runs=2)),
-    # the default; `swarmpose demo` tracks the same runs
     "refined-limbs": Measured(20.2, 20.0, 1.9, 3, _track("refined-limbs", 20, runs=3)),
+    # the default; `swarmpose demo` tracks the same runs
+    "refined-heading": Measured(21.8, 20.0, 1.8, 3, _track("refined-heading", 20, runs=3)),
 }

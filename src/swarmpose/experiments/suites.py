@@ -117,11 +117,11 @@ def _markers_reprojection() -> list[Entry]:
 
 
 def _ablation() -> list[Entry]:
-    """The default configuration built up one component at a time at 20 fps (``refined-limbs``, beyond the
+    """The default configuration built up one component at a time at 20 fps (``refined-heading``, beyond the
     papers): Deutscher & Reid's APF at 200 x 6, the root carried on at its last velocity, the local pattern
     search, the recovery of lost limbs (``refined``), the root's height moved by the silhouettes' rise, every
-    limb searched again on every frame by the frame's fitness, and the silhouette guard on what that search
-    keeps (``refined-limbs``)."""
+    limb searched again on every frame by the frame's fitness, the silhouette guard on what that search
+    keeps (``refined-limbs``), and the body's heading searched again on every frame (``refined-heading``)."""
     ref = "beyond the papers; base: Deutscher & Reid 2005"
     return [
         Entry("apf-dr05 200x6", "apf-dr05", 20.0, variant="apf=200x6", motion="zero-velocity", reference=ref),
@@ -132,6 +132,7 @@ def _ablation() -> list[Entry]:
         Entry("+ every limb, by the fitness", "refined", 20.0,
               variant="height=silhouettes+recovery=all+recovery_terms=fitness", reference=ref),
         Entry("+ silhouette guard (refined-limbs)", "refined-limbs", 20.0, reference=ref),
+        Entry("+ heading search (refined-heading)", "refined-heading", 20.0, reference=ref),
     ]
 
 

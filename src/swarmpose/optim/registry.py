@@ -583,7 +583,7 @@ REF_REFINED = ("beyond the papers: Deutscher & Reid's APF ([DR05] sec. 3, 6) wit
 
 def _refined(model: Any, fps: float) -> RefinedConfig:
     """``apf-dr05``'s search (200 x 6), a 200-evaluation pattern search on the same fitness, and the tracker's
-    recovery of lost limbs (the base of the default, ``refined-limbs``)."""
+    recovery of lost limbs (the base of the default, ``refined-heading``)."""
     base = dataclasses.replace(_apf_dr05(model, fps), n_layers=6)
     return RefinedConfig(name="refined", reference=REF_REFINED, base=base, refine_budget=200, refine_step=0.5,
                          recovery={"threshold": 0.05, "n_samples": 100, "n_rounds": 5, "refine_budget": 100},
@@ -591,7 +591,7 @@ def _refined(model: Any, fps: float) -> RefinedConfig:
 
 
 def _refined_limbs(model: Any, fps: float) -> RefinedConfig:
-    """The default tracker: ``refined`` with every limb searched again on every frame, scored and kept by the frame's own fitness when
+    """``refined`` with every limb searched again on every frame, scored and kept by the frame's own fitness when
     the silhouette overlap term does not fall (a limb lost inside the silhouette is seen; one the edges alone pull
     elsewhere is not taken), and the predicted root height moved by the silhouettes' rise. The same as ``refined
     --variant height=silhouettes+recovery=all+recovery_terms=fitness+recovery_guard=silhouette``."""
@@ -601,7 +601,7 @@ def _refined_limbs(model: Any, fps: float) -> RefinedConfig:
 
 
 def _refined_heading(model: Any, fps: float) -> RefinedConfig:
-    """``refined-limbs`` with the body's heading searched again on every frame (:data:`TURN_SEARCH`): the same as
+    """The default tracker: ``refined-limbs`` with the body's heading searched again on every frame (:data:`TURN_SEARCH`): the same as
     ``refined-limbs --variant turn=on``."""
     return dataclasses.replace(_refined_limbs(model, fps), name="refined-heading", turn_search=TURN_SEARCH)
 
@@ -712,11 +712,11 @@ register("refined", _refined, reference=REF_REFINED, evals_per_frame=1400,
          summary="Deutscher & Reid's APF (200 x 6), a local pattern search (200), and lost limbs searched again "
                  "over their joint limits")
 register("refined-limbs", _refined_limbs, reference=REF_REFINED, evals_per_frame=1400 + 4 * 603,
-         summary="the default: refined with every limb searched again on every frame by the frame's fitness, kept "
-                 "when the silhouettes agree, and the root's height from the silhouettes; 2.1 times refined's time")
+         summary="refined with every limb searched again on every frame by the frame's fitness, kept when the "
+                 "silhouettes agree, and the root's height from the silhouettes")
 register("refined-heading", _refined_heading, reference=REF_REFINED, evals_per_frame=1400 + 4 * 603 + 318,
-         summary="refined-limbs with the body's heading searched again on every frame (the pose turned as a whole "
-                 "and its pelvis alone, the best two polished)")
+         summary="the default: refined-limbs with the body's heading searched again on every frame (the pose "
+                 "turned as a whole and its pelvis alone, the best two polished)")
 register("refined-keypoints", _refined_keypoints, reference=REF_REFINED, evals_per_frame=1400,
          summary="refined with a detector's body keypoints in the fitness (robust, confidence-weighted, left/right "
                  "swaps allowed): for imported recordings, which carry them")
