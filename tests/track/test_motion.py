@@ -52,6 +52,8 @@ def test_carried_particles_move_by_the_step_where_they_stay_valid():
 @pytest.mark.parametrize("text, match", [
     ("constant-velocity:2", r"\[0, 1\]"), ("constant-velocity:x", "number"), ("constant-velocity:", "number"),
     ("linear", "known: zero-velocity"), ("zero-velocity:1", "no ':D'"), ("zero-velocity@root", "no ':D' and no '@"),
+    ("constant-velocity@pelvis_rz*2", r"pelvis_rz\*F .* \[0, 1\]"), ("constant-velocity@pelvis_rz*", "got ''"),
+    ("zero-velocity@pelvis_rz*0.5", "no ':D' and no '@"),
 ])
 def test_bad_motion_models_are_named(text, match):
     with pytest.raises(ConfigError, match=match):
@@ -62,7 +64,8 @@ def test_bad_motion_models_are_named(text, match):
 
 def test_names_round_trip_to_a_canonical_text():
     for text in ("zero-velocity", "constant-velocity", "constant-velocity:0.5", "constant-velocity:0.123456789",
-                 "constant-velocity@root_position+spine"):
+                 "constant-velocity@root_position+spine", "constant-velocity@pelvis_tx+pelvis_rz*0.5",
+                 "constant-velocity:0.8@pelvis_tx*1.0+pelvis_rz*0.25"):
         assert str(parse_motion(text)) == text
         assert parse_motion(str(parse_motion(text))) == parse_motion(text)
     assert str(parse_motion(" constant-velocity:1 ")) == "constant-velocity"
@@ -76,7 +79,8 @@ def test_groups_limit_the_step_and_are_checked_against_the_model():
     cv = parse_motion("constant-velocity:0.5@root_position+left_leg")
     assert cv.groups == ("root_position", "left_leg") and str(cv) == "constant-velocity:0.5@root_position+left_leg"
     mask = cv.mask(model)
-    assert mask.sum() == len(model.group("root_position")) + len(model.group("left_leg"))
+    assert np.count_nonzero(mask) == len(model.group("root_position")) + len(model.group("left_leg"))
+    assert set(mask[mask != 0]) == {0.5}  # each named parameter carries d of its last step
     history = np.stack([np.zeros(model.n_params), np.ones(model.n_params)])
     predicted = cv.predict(history, mask=mask)
     np.testing.assert_array_equal(predicted, np.where(mask, 1.5, 1.0))
@@ -101,3 +105,24 @@ def test_single_parameters_move_on_by_name():
     np.testing.assert_allclose(pred[3:6], (20.0, 40.0, 30.0))
     with pytest.raises(ConfigError, match="parameter's name"):
         parse_motion("constant-velocity@pelvis_tq").mask(model)
+
+
+def test_a_group_carries_its_own_fraction_of_the_last_step():
+    from swarmpose.body.model import load_model
+
+    model = load_model("balan31")
+    tx, rz, knee = (model.param_index(n) for n in ("pelvis_tx", "pelvis_rz", "l_knee_flex"))
+    history = np.zeros((2, model.n_params))
+    history[1, [tx, rz, knee]] = [100.0, 0.4, 0.2]
+    for text, expect in (("constant-velocity@pelvis_tx+pelvis_rz", (200.0, 0.8)),
+                         ("constant-velocity@pelvis_tx+pelvis_rz*0.5", (200.0, 0.6)),
+                         ("constant-velocity:0.5@pelvis_tx+pelvis_rz*0.25", (150.0, 0.5))):
+        cv = parse_motion(text)
+        predicted = cv.predict(history, mask=cv.mask(model))
+        np.testing.assert_allclose(predicted[[tx, rz]], expect, atol=1e-12)
+        assert predicted[knee] == 0.2  # not named: it stays
+    # the groups' own fractions equal to d give the model without them, to the last digit
+    plain, own = parse_motion("constant-velocity:0.7@root_position"), parse_motion("constant-velocity:0.7@root_position*0.7")
+    rng = np.random.default_rng(0)
+    h = rng.normal(size=(2, model.n_params))
+    assert np.array_equal(plain.predict(h, mask=plain.mask(model)), own.predict(h, mask=own.mask(model)))
