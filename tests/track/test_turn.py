@@ -140,3 +140,40 @@ def test_refined_heading_is_refined_limbs_with_the_turn_search():
         assert repr(getattr(heading, f)) == repr(getattr(on, f)), f  # (configurations compare by identity)
     assert heading.evals_per_frame == on.evals_per_frame
     assert registry.default_motion("refined-heading") == registry.default_motion("refined-limbs")
+
+
+def test_the_heading_is_carried_on_beyond_its_dead_zone():
+    from swarmpose.track.step import FrameSearch
+
+    model = load_model("balan31")
+    rz = model.param_index("pelvis_rz")
+
+    def search(constraint=lambda poses: np.ones(len(poses), bool)):
+        return FrameSearch(model=model, algo=None, fitness=None, motion=None, motion_mask=None,
+                           constraint=constraint, timer=None, extra_options={}, heading_speed=10.0)
+
+    history = np.zeros((2, model.n_params))
+    pred = history[-1].copy()
+    for step_deg, carried_deg in ((30.0, 20.0), (-30.0, -20.0), (5.0, 0.0), (10.0, 0.0)):
+        history[1, rz] = np.radians(step_deg)
+        pred[rz] = history[1, rz]
+        out = search()._carry_heading(history, pred)
+        assert np.degrees(out[rz] - pred[rz]) == pytest.approx(carried_deg, abs=1e-9)
+        np.testing.assert_array_equal(np.delete(out, rz), np.delete(pred, rz))
+    history[1, rz] = np.radians(40.0)
+    refused = search(lambda poses: np.zeros(len(poses), bool))._carry_heading(history, pred)
+    assert refused is pred  # a carried heading the hard priors refuse is not used
+
+
+def test_the_heading_speed_variant():
+    model = load_model("balan31")
+    cfg = registry.get("refined-heading", model=model, fps=20)
+    assert cfg.heading_speed is None
+    assert apply_variant(cfg, "heading_speed=10").heading_speed == 10.0
+    assert apply_variant(apply_variant(cfg, "heading_speed=10"), "heading_speed=off").heading_speed is None
+    assert apply_variant(cfg, "heading_speed=10").evals_per_frame == cfg.evals_per_frame
+    for bad in ("heading_speed=-1", "heading_speed=fast"):
+        with pytest.raises(ConfigError, match="heading_speed=D"):
+            apply_variant(cfg, bad)
+    with pytest.raises(ConfigError, match="heading_speed=D"):
+        apply_variant(registry.get("sppso", model=model, fps=20), "heading_speed=10")

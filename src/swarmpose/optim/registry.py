@@ -396,6 +396,9 @@ class RefinedConfig(OptimizerConfig):
     turn_search : Mapping
         Settings of the tracker's search of the body's heading (:mod:`swarmpose.track.turn`; :data:`TURN_SEARCH`),
         read by the tracker only; empty: none.
+    heading_speed : float or None
+        Degrees per frame: the part of the heading's last step beyond this is carried on into the prediction (a
+        spin goes on, a walking pelvis's rocking does not); None: not. Read by the tracker only.
     """
 
     base: OptimizerConfig | None = None
@@ -406,6 +409,7 @@ class RefinedConfig(OptimizerConfig):
     keypoint_ik: bool = False
     silhouette_height: bool = False
     turn_search: Mapping[str, Any] = field(default_factory=dict)
+    heading_speed: float | None = None
 
     def __post_init__(self) -> None:
         super().__post_init__()

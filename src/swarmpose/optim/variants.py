@@ -34,7 +34,8 @@ def apply_variant(config: Any, variant: str) -> Any:
       the silhouettes' triangulated centre since the frame before (``height=off``: not); ``turn=on``: the body's
       heading searched again on every frame (the pose and its pelvis alone turned, the best polished:
       ``swarmpose.track.turn``, 318 evaluations); ``turn_margin=M``: a turned pose kept only when it scores
-      more than M above the frame's pose; several variants are
+      more than M above the frame's pose; ``heading_speed=D``: the part of the heading's last step beyond D degrees
+      carried on into the prediction; several variants are
       joined by ``+`` (``apf=200x5+refine=0``).
     """
     if not variant:
@@ -58,6 +59,16 @@ def apply_variant(config: Any, variant: str) -> Any:
         from .registry import TURN_SEARCH
 
         return dataclasses.replace(config, turn_search=TURN_SEARCH if value == "on" else {})
+    if head == "heading_speed":
+        value = variant.partition("=")[2].strip()
+        try:
+            d = None if value == "off" else float(value)
+        except ValueError:
+            d = float("nan")
+        if not hasattr(config, "heading_speed") or not (d is None or (math.isfinite(d) and d >= 0)):
+            raise ConfigError(f"variant {variant!r}: expected heading_speed=D (degrees per frame, >= 0) or "
+                              f"heading_speed=off on a refined configuration ({config.name!r})")
+        return dataclasses.replace(config, heading_speed=d)
     if head == "turn_margin":
         value = variant.partition("=")[2].strip()
         try:

@@ -90,6 +90,7 @@ class FrameSearch:
     search_start: bool = False
     silhouette_height: bool = False
     turn: Any = None  # a swarmpose.track.turn.TurnSearch
+    heading_speed: float | None = None  # degrees per frame (the algorithm's heading_speed)
     _centre: tuple[int, np.ndarray | None] | None = field(default=None, init=False, repr=False)
 
     def note_centre(self, i: int, features: Any) -> tuple[int, np.ndarray | None] | None:
@@ -111,6 +112,18 @@ class FrameSearch:
         rise = float(c[2] - before[1][2])
         return float(np.sign(rise)) * max(0.0, abs(rise) - RISE_DEAD_ZONE_MM)
 
+    def _carry_heading(self, history: np.ndarray, x_pred: np.ndarray) -> np.ndarray:
+        """``x_pred`` with the part of the heading's (``pelvis_rz``'s) last step beyond ``heading_speed`` degrees
+        added, where the pose stays within the hard priors."""
+        rz = self.model.param_index("pelvis_rz")
+        d = float(history[-1][rz] - history[-2][rz])
+        excess = float(np.sign(d)) * max(0.0, abs(d) - np.radians(self.heading_speed))
+        if not excess:
+            return x_pred
+        moved = x_pred.copy()
+        moved[rz] += excess
+        return moved if bool(np.asarray(self.constraint(moved[None]))[0]) else x_pred
+
     def step(self, i: int, history: np.ndarray, x_prev: np.ndarray, carry: Any, rng: np.random.Generator,
              first: bool = False) -> StepResult:
         """Track position ``i`` from ``x_prev``; ``history`` = the poses tracked so far in the pass's order (the
@@ -126,6 +139,8 @@ class FrameSearch:
                     tz = model.param_index("pelvis_tz")
                     x_pred = x_pred.copy()
                     x_pred[tz] = min(max(x_pred[tz] + rise, model.lower[tz]), model.upper[tz])
+            if self.heading_speed is not None and len(history) >= 2:
+                x_pred = self._carry_heading(history, x_pred)
             step = x_pred - x_prev
             if carry is not None and np.any(step):
                 carry = optim.ParticleSet(self.motion.move_particles(carry.particles, step, self.constraint),

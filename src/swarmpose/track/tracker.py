@@ -682,7 +682,8 @@ def run_tracker(
                          silhouette_height=bool(getattr(algo, "silhouette_height", False))
                          and cfg.fitness_kind in IMAGE_FITNESS,
                          turn=TurnSearch.from_settings(getattr(algo, "turn_search", {}))
-                         if cfg.fitness_kind in IMAGE_FITNESS else None)
+                         if cfg.fitness_kind in IMAGE_FITNESS else None,
+                         heading_speed=getattr(algo, "heading_speed", None))
     if search.silhouette_height and start_k > 0:  # a resumed run: the rise into its first frame as in one run
         search.note_centre(start_k - 1, load(start_k - 1))
     try:
