@@ -47,6 +47,13 @@ def test_help_keeps_the_bracketed_forms():
     assert "pip install 'swarmpose[torch]'" in text and "pip install 'swarmpose[dask]'" in text
 
 
+def test_compare_help_names_every_suite():
+    from swarmpose.experiments.suites import SUITES
+
+    text = " ".join(CliRunner().invoke(app, ["compare", "--help"], env={"COLUMNS": "250"}).output.split())
+    assert [name for name in SUITES if name not in text] == []
+
+
 def test_no_help_text_has_a_bracket_that_rich_would_take_for_a_style_tag():
     """Rich reads ``[word]`` in a help text as markup and drops it (``pip install 'swarmpose[torch]'`` came
     out as ``'swarmpose'``); such brackets must be written ``\\[word]``."""

@@ -32,8 +32,10 @@ def default_comparison_name(suite: str, *, seed: int, downsample: int, max_frame
 def compare(
     suite: str = typer.Argument(None, help="thesis-apf, thesis-partitions, thesis-budget, thesis-swarm, "
                                            "thesis-fitness, markers (Sharifi et al.'s epipolar "
-                                           "score) or markers-reprojection (the same comparisons with "
-                                           "the reprojection fitness). With --list it may be left out."),
+                                           "score), markers-reprojection (the same comparisons with "
+                                           "the reprojection fitness) or ablation (the default tracker "
+                                           "built up one component at a time). With --list it may be "
+                                           "left out."),
     sources: list[str] = typer.Option(None, "--clip", help="Sequence folders or BVH clips (repeatable); "
                                                             "default: the shared walking clip."),
     runs: int = typer.Option(5, min=1, help="Runs per entry."),

@@ -399,6 +399,10 @@ class RefinedConfig(OptimizerConfig):
     heading_speed : float or None
         Degrees per frame: the part of the heading's last step beyond this is carried on into the prediction (a
         spin goes on, a walking pelvis's rocking does not); None: not. Read by the tracker only.
+    frame_options : Mapping
+        Fitness options of every search of a frame (the base search, the refinement, the heading and limb
+        searches), under the run's own ``--fitness-options``; read by the tracker only. ``{"keypoints": W}``
+        weighs the detector's keypoints where the sequence carries them and changes nothing where it does not.
     """
 
     base: OptimizerConfig | None = None
@@ -410,6 +414,7 @@ class RefinedConfig(OptimizerConfig):
     silhouette_height: bool = False
     turn_search: Mapping[str, Any] = field(default_factory=dict)
     heading_speed: float | None = None
+    frame_options: Mapping[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -605,9 +610,11 @@ def _refined_limbs(model: Any, fps: float) -> RefinedConfig:
 
 
 def _refined_heading(model: Any, fps: float) -> RefinedConfig:
-    """The default tracker: ``refined-limbs`` with the body's heading searched again on every frame (:data:`TURN_SEARCH`): the same as
-    ``refined-limbs --variant turn=on``."""
-    return dataclasses.replace(_refined_limbs(model, fps), name="refined-heading", turn_search=TURN_SEARCH)
+    """The default tracker: ``refined-limbs`` with the body's heading searched again on every frame (:data:`TURN_SEARCH`),
+    and the keypoint term (weight :data:`KEYPOINT_WEIGHT`) in every search of a frame where the sequence carries a
+    detector's keypoints. On a sequence without them it is ``refined-limbs --variant turn=on``, pose for pose."""
+    return dataclasses.replace(_refined_limbs(model, fps), name="refined-heading", turn_search=TURN_SEARCH,
+                               frame_options={"keypoints": KEYPOINT_WEIGHT})
 
 
 #: Weight of the keypoint term in ``refined-keypoints``, chosen on the shared recording (cam04 held out, 20 fps,
@@ -720,7 +727,8 @@ register("refined-limbs", _refined_limbs, reference=REF_REFINED, evals_per_frame
                  "silhouettes agree, and the root's height from the silhouettes")
 register("refined-heading", _refined_heading, reference=REF_REFINED, evals_per_frame=1400 + 4 * 603 + 318,
          summary="the default: refined-limbs with the body's heading searched again on every frame (the pose "
-                 "turned as a whole and its pelvis alone, the best two polished)")
+                 "turned as a whole and its pelvis alone, the best two polished), and a detector's keypoints in "
+                 "every search where the sequence carries them")
 register("refined-keypoints", _refined_keypoints, reference=REF_REFINED, evals_per_frame=1400,
          summary="refined with a detector's body keypoints in the fitness (robust, confidence-weighted, left/right "
                  "swaps allowed): for imported recordings, which carry them")

@@ -35,7 +35,8 @@ def apply_variant(config: Any, variant: str) -> Any:
       heading searched again on every frame (the pose and its pelvis alone turned, the best polished:
       ``swarmpose.track.turn``, 318 evaluations); ``turn_margin=M``: a turned pose kept only when it scores
       more than M above the frame's pose; ``heading_speed=D``: the part of the heading's last step beyond D degrees
-      carried on into the prediction; several variants are
+      carried on into the prediction; ``keypoint_ik=on``: each frame's pose fitted to the triangulated
+      keypoints from where the searches left it, kept when it scores higher (sequences with keypoints); several variants are
       joined by ``+`` (``apf=200x5+refine=0``).
     """
     if not variant:
@@ -45,20 +46,18 @@ def apply_variant(config: Any, variant: str) -> Any:
             config = apply_variant(config, part)
         return config
     head = variant.partition("=")[0].strip()
-    if head == "height":
+    if head in ("height", "turn", "keypoint_ik"):
+        field, on = {"height": ("silhouette_height", "silhouettes"), "turn": ("turn_search", "on"),
+                     "keypoint_ik": ("keypoint_ik", "on")}[head]
         value = variant.partition("=")[2].strip()
-        if not hasattr(config, "silhouette_height") or value not in ("silhouettes", "off"):
-            raise ConfigError(f"variant {variant!r}: expected height=silhouettes or height=off on a refined "
+        if not hasattr(config, field) or value not in (on, "off"):
+            raise ConfigError(f"variant {variant!r}: expected {head}={on} or {head}=off on a refined "
                               f"configuration ({config.name!r})")
-        return dataclasses.replace(config, silhouette_height=value == "silhouettes")
-    if head == "turn":
-        value = variant.partition("=")[2].strip()
-        if not hasattr(config, "turn_search") or value not in ("on", "off"):
-            raise ConfigError(f"variant {variant!r}: expected turn=on or turn=off on a refined configuration "
-                              f"({config.name!r})")
-        from .registry import TURN_SEARCH
+        if head == "turn":
+            from .registry import TURN_SEARCH
 
-        return dataclasses.replace(config, turn_search=TURN_SEARCH if value == "on" else {})
+            return dataclasses.replace(config, turn_search=TURN_SEARCH if value == on else {})
+        return dataclasses.replace(config, **{field: value == on})
     if head == "heading_speed":
         value = variant.partition("=")[2].strip()
         try:

@@ -618,6 +618,8 @@ def run_tracker(
     motion = parse_motion(cfg.motion)
     motion_mask = motion.mask(model)
     extra_options = parse_fitness_options(cfg.fitness_options)
+    if cfg.fitness_kind in IMAGE_FITNESS and getattr(algo, "frame_options", None):
+        extra_options = {**algo.frame_options, **extra_options}  # the configuration's, under the run's own
     feature_options = parse_feature_options(cfg.feature_options)
     timer = PartTimer()
     constraint = timer.wrap("priors", HardPriors(model).valid)

@@ -1,0 +1,77 @@
+"""The default tracker's own fitness options for every search of a frame: the detector's keypoints where the
+sequence carries them, nothing where it does not."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from swarmpose.io.sequence import MarkerData, MultiViewSequence, open_sequence, write_sequence
+from swarmpose.joints import JOINTS15
+from swarmpose.triangulation import reproject
+
+
+@pytest.fixture(scope="module")
+def keypoint_sequence(short_sequence: Path, tmp_path_factory) -> Path:
+    """The short walk with its ground truth kept and keypoints added: the truth projected, 4 px of noise."""
+    rng = np.random.default_rng(3)
+    out = tmp_path_factory.mktemp("kp") / "walk"
+    with open_sequence(short_sequence) as seq:
+        uv = reproject(seq.cameras, np.asarray(seq.gt_joints))
+        uv = uv + rng.normal(0, 4.0, uv.shape)
+        markers = MarkerData.from_dense(JOINTS15, uv, np.full(uv.shape[:-1], 0.9))
+        write_sequence(out, MultiViewSequence(
+            cameras=seq.cameras, frame_rate=seq.frame_rate, n_frames=seq.n_frames, reader=seq._reader,
+            backgrounds=seq.backgrounds(), markers=markers, frame_times=seq.frame_times,
+            gt_joints=np.asarray(seq.gt_joints), world_from_source=seq.world_from_source,
+            source_clip=seq.source_clip, subject_measurements=seq.subject_measurements))
+    return out
+
+
+def _track(path: Path, algo: str, variant: str = "", options: str = "") -> np.ndarray:
+    from swarmpose.track.tracker import TrackConfig, prepare_track, run_tracker
+
+    cfg = TrackConfig(algo=algo, optim_variant=variant, fitness_options=options, max_frames=2, downsample=2)
+    return run_tracker(prepare_track(path, cfg), 0).params
+
+
+def test_the_default_weighs_keypoints_where_the_sequence_has_them(short_sequence: Path, keypoint_sequence: Path):
+    from swarmpose.body.model import load_model
+    from swarmpose.optim import registry
+    from swarmpose.optim.registry import KEYPOINT_WEIGHT
+    from swarmpose.track.start import has_keypoints
+
+    with open_sequence(short_sequence) as plain, open_sequence(keypoint_sequence) as kp:
+        assert not has_keypoints(plain) and has_keypoints(kp) and kp.gt_joints is not None
+    assert registry.get("refined-heading", model=load_model("balan31"), fps=20).frame_options == {"keypoints": KEYPOINT_WEIGHT}
+    # without keypoints: refined-limbs with the turn search, pose for pose
+    np.testing.assert_array_equal(_track(short_sequence, "refined-heading"),
+                                  _track(short_sequence, "refined-limbs", "turn=on"))
+    # with them: the term in every search, as the run's own --fitness-options would put it there
+    heading = _track(keypoint_sequence, "refined-heading")
+    np.testing.assert_array_equal(heading, _track(keypoint_sequence, "refined-limbs", "turn=on",
+                                                  f"keypoints={KEYPOINT_WEIGHT:g}"))
+    assert not np.array_equal(heading, _track(keypoint_sequence, "refined-limbs", "turn=on"))
+    # the run's own options go over the configuration's: keypoints=0 turns the term off
+    np.testing.assert_array_equal(_track(keypoint_sequence, "refined-heading", options="keypoints=0"),
+                                  _track(keypoint_sequence, "refined-limbs", "turn=on", "keypoints=0"))
+
+
+def test_the_keypoint_ik_variant():
+    from swarmpose.body.model import load_model
+    from swarmpose.errors import ConfigError
+    from swarmpose.optim import registry
+    from swarmpose.optim.variants import apply_variant
+
+    model = load_model("balan31")
+    cfg = registry.get("refined-heading", model=model, fps=20)
+    assert not cfg.keypoint_ik
+    on = apply_variant(cfg, "keypoint_ik=on")
+    assert on.keypoint_ik and not apply_variant(on, "keypoint_ik=off").keypoint_ik
+    assert on.frame_options == cfg.frame_options and on.turn_search == cfg.turn_search
+    with pytest.raises(ConfigError, match="keypoint_ik=on or keypoint_ik=off"):
+        apply_variant(cfg, "keypoint_ik=yes")
+    with pytest.raises(ConfigError, match="keypoint_ik=on or keypoint_ik=off"):
+        apply_variant(registry.get("sppso", model=model, fps=20), "keypoint_ik=on")
