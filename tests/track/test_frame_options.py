@@ -30,11 +30,14 @@ def keypoint_sequence(short_sequence: Path, tmp_path_factory) -> Path:
     return out
 
 
-def _track(path: Path, algo: str, variant: str = "", options: str = "") -> np.ndarray:
+def _track(path: Path, algo: str, variant: str = "", options: str = "", *, ik_ran: bool | None = None) -> np.ndarray:
     from swarmpose.track.tracker import TrackConfig, prepare_track, run_tracker
 
     cfg = TrackConfig(algo=algo, optim_variant=variant, fitness_options=options, max_frames=2, downsample=2)
-    return run_tracker(prepare_track(path, cfg), 0).params
+    result = run_tracker(prepare_track(path, cfg), 0)
+    if ik_ran is not None:  # the per-frame keypoint IK ran, or did not
+        assert (result.part_seconds.get("keypoint_ik", 0.0) > 0) == ik_ran
+    return result.params
 
 
 def test_the_default_weighs_keypoints_where_the_sequence_has_them(short_sequence: Path, keypoint_sequence: Path):
@@ -47,16 +50,16 @@ def test_the_default_weighs_keypoints_where_the_sequence_has_them(short_sequence
         assert not has_keypoints(plain) and has_keypoints(kp) and kp.gt_joints is not None
     assert registry.get("refined-heading", model=load_model("balan31"), fps=20).frame_options == {"keypoints": KEYPOINT_WEIGHT}
     # without keypoints: refined-limbs with the turn search, pose for pose
-    np.testing.assert_array_equal(_track(short_sequence, "refined-heading"),
+    np.testing.assert_array_equal(_track(short_sequence, "refined-heading", ik_ran=False),
                                   _track(short_sequence, "refined-limbs", "turn=on"))
-    # with them: the term in every search, as the run's own --fitness-options would put it there
-    heading = _track(keypoint_sequence, "refined-heading")
-    np.testing.assert_array_equal(heading, _track(keypoint_sequence, "refined-limbs", "turn=on",
+    # with them: the term in every search, as the run's own --fitness-options would put it there, and the IK
+    heading = _track(keypoint_sequence, "refined-heading", ik_ran=True)
+    np.testing.assert_array_equal(heading, _track(keypoint_sequence, "refined-limbs", "turn=on+keypoint_ik=on",
                                                   f"keypoints={KEYPOINT_WEIGHT:g}"))
-    assert not np.array_equal(heading, _track(keypoint_sequence, "refined-limbs", "turn=on"))
+    assert not np.array_equal(heading, _track(keypoint_sequence, "refined-limbs", "turn=on+keypoint_ik=on"))
     # the run's own options go over the configuration's: keypoints=0 turns the term off
     np.testing.assert_array_equal(_track(keypoint_sequence, "refined-heading", options="keypoints=0"),
-                                  _track(keypoint_sequence, "refined-limbs", "turn=on", "keypoints=0"))
+                                  _track(keypoint_sequence, "refined-limbs", "turn=on+keypoint_ik=on", "keypoints=0"))
 
 
 def test_the_keypoint_ik_variant():
@@ -67,10 +70,10 @@ def test_the_keypoint_ik_variant():
 
     model = load_model("balan31")
     cfg = registry.get("refined-heading", model=model, fps=20)
-    assert not cfg.keypoint_ik
-    on = apply_variant(cfg, "keypoint_ik=on")
-    assert on.keypoint_ik and not apply_variant(on, "keypoint_ik=off").keypoint_ik
-    assert on.frame_options == cfg.frame_options and on.turn_search == cfg.turn_search
+    assert cfg.keypoint_ik and not registry.get("refined-limbs", model=model, fps=20).keypoint_ik
+    off = apply_variant(cfg, "keypoint_ik=off")
+    assert not off.keypoint_ik and apply_variant(off, "keypoint_ik=on").keypoint_ik
+    assert off.frame_options == cfg.frame_options and off.turn_search == cfg.turn_search
     with pytest.raises(ConfigError, match="keypoint_ik=on or keypoint_ik=off"):
         apply_variant(cfg, "keypoint_ik=yes")
     with pytest.raises(ConfigError, match="keypoint_ik=on or keypoint_ik=off"):

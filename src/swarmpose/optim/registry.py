@@ -611,10 +611,11 @@ def _refined_limbs(model: Any, fps: float) -> RefinedConfig:
 
 def _refined_heading(model: Any, fps: float) -> RefinedConfig:
     """The default tracker: ``refined-limbs`` with the body's heading searched again on every frame (:data:`TURN_SEARCH`),
-    and the keypoint term (weight :data:`KEYPOINT_WEIGHT`) in every search of a frame where the sequence carries a
-    detector's keypoints. On a sequence without them it is ``refined-limbs --variant turn=on``, pose for pose."""
+    and, where the sequence carries a detector's keypoints, the keypoint term (weight :data:`KEYPOINT_WEIGHT`) in every
+    search of a frame and the keypoint IK after them. On a sequence without keypoints it is ``refined-limbs --variant
+    turn=on``, pose for pose."""
     return dataclasses.replace(_refined_limbs(model, fps), name="refined-heading", turn_search=TURN_SEARCH,
-                               frame_options={"keypoints": KEYPOINT_WEIGHT})
+                               frame_options={"keypoints": KEYPOINT_WEIGHT}, keypoint_ik=True)
 
 
 #: Weight of the keypoint term in ``refined-keypoints``, chosen on the shared recording (cam04 held out, 20 fps,
@@ -728,7 +729,7 @@ register("refined-limbs", _refined_limbs, reference=REF_REFINED, evals_per_frame
 register("refined-heading", _refined_heading, reference=REF_REFINED, evals_per_frame=1400 + 4 * 603 + 318,
          summary="the default: refined-limbs with the body's heading searched again on every frame (the pose "
                  "turned as a whole and its pelvis alone, the best two polished), and a detector's keypoints in "
-                 "every search where the sequence carries them")
+                 "every search and fitted after them where the sequence carries them")
 register("refined-keypoints", _refined_keypoints, reference=REF_REFINED, evals_per_frame=1400,
          summary="refined with a detector's body keypoints in the fitness (robust, confidence-weighted, left/right "
                  "swaps allowed): for imported recordings, which carry them")
