@@ -5,9 +5,9 @@ folders and a TOML calibration and read back by ``swarmpose import`` with MediaP
 ``--silhouettes none``), as a recording of one's own would be. The keypoints, matched across views and
 left/right as the import does it, then replace the synthetic sequence's marker stream in a copy of it that keeps
 its images, masks, ground truth and subject. That copy is tracked with ``--algo A`` (default: the default
-tracker, which weighs keypoints wherever a sequence carries them) and measured against the ground truth;
-``--without`` tracks it a second time with ``--fitness-options keypoints=0`` (the same poses as tracking the
-original sequence).
+tracker, which weighs keypoints wherever a sequence carries them) into ``WORK/<clip>-<algo>`` and measured
+against the ground truth; ``--without`` tracks it a second time with ``--fitness-options keypoints=0`` into
+``WORK/<clip>-<algo>-keypoints0`` (the keypoint term off; the default's fit to the keypoints stays).
 
 Run:  .venv/bin/python scripts/detected_keypoints.py [--clips CLIP ...] [--fps 20] [--runs 3] [--algo A]
       [--without] [--work results/detected-keypoints] [--json]
@@ -106,7 +106,7 @@ def main() -> None:
         for label, extra in (("with", []), ("without", ["--fitness-options", "keypoints=0"])):
             if label == "without" and not args.without:
                 continue
-            out = args.work / f"{name}-{args.algo}-{label}"
+            out = args.work / f"{name}-{args.algo}{'' if label == 'with' else '-keypoints0'}"
             shutil.rmtree(out, ignore_errors=True)
             run([*CLI, "track", str(hybrid), "--algo", args.algo, "--fps", f"{args.fps:g}", "--runs", str(args.runs),
                  "--out", str(out), "--no-progress", "--json", *extra])

@@ -61,11 +61,13 @@ def _image(model, pose, cam, rng) -> np.ndarray:
     return np.clip(img, 0, 255).astype(np.uint8)
 
 
-def build_results(root: Path, *, runs: int = 2, invalid: tuple[int, ...] = ()) -> tuple[Path, Path]:
+def build_results(root: Path, *, runs: int = 2, invalid: tuple[int, ...] = (),
+                  keypoints: bool = False) -> tuple[Path, Path]:
     """Write a sequence and a results folder under ``root``; return ``(results_dir, sequence_dir)``.
 
     ``invalid``: processed frames whose ground truth is missing (NaN rows, as HumanEva marks them); the
-    summaries are then those ``swarmpose track`` writes, over the valid frames only."""
+    summaries are then those ``swarmpose track`` writes, over the valid frames only. ``keypoints``: the sequence
+    carries a detector's keypoints (the truth projected, confidence 0.9), as an imported recording does."""
     rng = np.random.default_rng(5)
     model = load_model("balan31")
     cams = rig()
@@ -75,7 +77,15 @@ def build_results(root: Path, *, runs: int = 2, invalid: tuple[int, ...] = ()) -
     w = SequenceWriter(seq_dir, cams, SEQ_FPS, N_SEQ, streams=("image",))
     for k in range(N_SEQ):
         w.write_frame(k, image=np.stack([_image(model, gt_params[k], c, rng) for c in cams]))
-    w.finish(gt_joints=gt, frame_times=np.arange(N_SEQ) / SEQ_FPS,
+    markers = None
+    if keypoints:
+        from swarmpose.io.sequence import MarkerData
+        from swarmpose.joints import JOINTS15
+        from swarmpose.triangulation import reproject
+
+        uv = reproject(cams, gt)
+        markers = MarkerData.from_dense(JOINTS15, uv, np.full(uv.shape[:-1], 0.9))
+    w.finish(gt_joints=gt, frame_times=np.arange(N_SEQ) / SEQ_FPS, markers=markers,
              backgrounds=np.stack([np.clip(_background(), 0, 255).astype(np.uint8)] * len(cams)))
 
     res = root / "results"

@@ -75,6 +75,19 @@ def test_the_report_gives_each_limbs_confidence(results_copy: Path):
     assert (rep / "limb_confidence.png").stat().st_size > 1000
 
 
+def test_with_keypoints_the_confidence_reads_them_too(results_builder, tmp_path: Path):
+    """A sequence with a detector's keypoints: the report measures how far each limb lies from them, and the lost
+    arm is the least trusted limb-frame by both pieces of evidence."""
+    res, _ = results_builder(tmp_path, keypoints=True)
+    paths = make_report(res, overlay_frames=1, run=1)
+    with np.load(res / "report" / "limb_confidence.npz") as z:
+        limbs, conf, k = list(z["limbs"]), z["confidence"], z["keypoint_disagreement_mm"]
+    arm = limbs.index("right_arm")
+    assert k.shape == conf.shape and np.isfinite(k).all()
+    assert k[3, arm] == k.max() and k[3, arm] > 200 and conf[3, arm] == conf.min() and conf[3, arm] < 0.01
+    assert "how far its joints lie from the detector's keypoints" in paths.summary.read_text()
+
+
 def test_a_second_report_keeps_what_it_does_not_replace(results_copy: Path):
     """A report into a folder with an earlier one overwrites only the files it writes again: the first report's
     overlays of other frames or another run, and its video, stay; summary.md names this report's."""

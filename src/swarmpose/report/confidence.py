@@ -10,8 +10,16 @@ import numpy as np
 
 from swarmpose.report._style import SIDE_RGB, rgb01
 from swarmpose.report.results import Results
-from swarmpose.track.confidence import LIMB_JOINTS, LOST_MM, limb_confidence, limb_lost, track_disagreement
+from swarmpose.track.confidence import (
+    LIMB_JOINTS,
+    LOST_MM,
+    keypoint_disagreement,
+    limb_confidence,
+    limb_lost,
+    track_disagreement,
+)
 from swarmpose.track.observation import IMAGE_FITNESS
+from swarmpose.track.start import has_keypoints
 
 __all__ = ["run_confidence", "confidence_section"]
 
@@ -44,8 +52,15 @@ def run_confidence(res: Results, run: int = 0, sequence: Any = None) -> dict[str
                                      features, views)
 
         disagreement = track_disagreement(fitness, model, r.params, observation)
+        kp = None
+        if has_keypoints(seq):  # the detector's keypoints: a second, independent piece of evidence
+            dense = seq.marker_data.to_dense()[0]
+            kp = keypoint_disagreement([seq.cameras[c] for c in views], dense[np.asarray(r.frame_indices)][:, views],
+                                       r.joints)
     out = {"limbs": np.array(list(LIMB_JOINTS)), "frame_indices": r.frame_indices, "frame_times": r.frame_times,
-           "disagreement": disagreement, "confidence": limb_confidence(disagreement)}
+           "disagreement": disagreement, "confidence": limb_confidence(disagreement, kp)}
+    if kp is not None:
+        out["keypoint_disagreement_mm"] = kp
     gt = getattr(r, "gt_joints", None)
     if gt is not None and np.isfinite(gt).any():
         out["lost"] = limb_lost(r.joints, gt)
@@ -89,8 +104,11 @@ def confidence_section(res: Results, out_dir: Path, run: int = 0, sequence: Any 
     conf = data["confidence"]
     lines = ["## Per-limb confidence", "",
              f"Run {run}: the probability that each limb's elbow and wrist (knee and ankle) are within "
-             f"{LOST_MM:.0f} mm, from how far its cones reach outside the silhouettes (calibrated on the shared "
-             "synthetic clips; on coarser masks read it as a ranking). Per frame in `limb_confidence.npz`.", "",
+             f"{LOST_MM:.0f} mm, from how far its cones reach outside the silhouettes"
+             + (" and how far its joints lie from the detector's keypoints" if "keypoint_disagreement_mm" in data
+                else "")
+             + " (calibrated on the shared synthetic clips; on coarser masks read it as a ranking). Per frame in "
+             "`limb_confidence.npz`.", "",
              "| limb | mean confidence | frames below 0.5 |" + (" frames lost (truth) |" if truth else ""),
              "|---|---:|---:|" + ("---:|" if truth else "")]
     for j, limb in enumerate(data["limbs"]):
