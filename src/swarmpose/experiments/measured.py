@@ -44,7 +44,7 @@ MEASURED: dict[str, Measured] = {
     # on the synthetic 2D marker detections, with the default (symmetric reprojection) fitness
     "aapso": Measured(14.8, 25.0, None, 5, _track("aapso", 25)),
     "aapso-fixed": Measured(15.2, 25.0, None, 5, "swarmpose compare markers-reprojection"),
-    # the first entries of `swarmpose compare ablation --runs 2` (the same runs)
+    # 2 runs (git d556adc); `swarmpose compare ablation --runs 5` gives it 25.7 (23.8-28.9) on the walk
     "refined": Measured(24.8, 20.0, 4.1, 2, _track("refined", 20, runs=2)),
     "refined-limbs": Measured(20.2, 20.0, 1.9, 3, _track("refined-limbs", 20, runs=3)),
     # the default; `swarmpose demo` tracks the same runs
