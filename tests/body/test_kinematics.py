@@ -124,6 +124,20 @@ def test_parallel_kernel_equals_reference():
     np.testing.assert_allclose(model.forward(poses[:7]), model.forward(poses)[:7], atol=1e-12)  # serial kernel
 
 
+def test_a_long_track_s_joints_are_computed_in_steps_with_the_same_values():
+    """More than JOINTS_CHUNK poses (a long recording's track) go through joints15 in steps: the same joints as
+    the poses taken a few at a time."""
+    from swarmpose.body.model import JOINTS_CHUNK
+
+    model = load_model("balan31")
+    rng = np.random.default_rng(5)
+    poses = rng.uniform(-3.0, 3.0, (2 * JOINTS_CHUNK + 17, model.n_params))
+    poses[:, 3:6] *= 300.0
+    steps = np.concatenate([model.joints15(poses[a:a + 100]) for a in range(0, len(poses), 100)])
+    np.testing.assert_array_equal(model.joints15(poses), steps)
+    np.testing.assert_allclose(model.joints15(poses[:50], reference=True), steps[:50], atol=1e-9)
+
+
 @settings(max_examples=40, deadline=None)
 @given(poses=pose_batches)
 def test_bone_lengths_are_preserved(poses):

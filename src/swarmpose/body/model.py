@@ -20,7 +20,10 @@ from swarmpose.body.kinematics import (
 from swarmpose.body.spec import AXES, BodySpec, Subject, load_spec
 from swarmpose.errors import ConfigError, ShapeError
 
-__all__ = ["BodyModel", "ConeArrays", "PlacedCones", "load_model"]
+__all__ = ["BodyModel", "ConeArrays", "PlacedCones", "load_model", "JOINTS_CHUNK"]
+
+#: Poses per step of :meth:`BodyModel.joints15` (the whole track of a long recording is taken in steps).
+JOINTS_CHUNK = 4096
 
 
 @dataclass(frozen=True)
@@ -199,8 +202,17 @@ class BodyModel:
         return self.forward(poses, reference=reference)[..., 3]
 
     def joints15(self, poses: np.ndarray, *, reference: bool = False) -> np.ndarray:
-        """The 15 HumanEva joints ``(N, 15, 3)`` in mm, order of :data:`swarmpose.joints.JOINTS15`."""
-        return self.joint_positions(poses, reference=reference)[:, self.joints15_index]
+        """The 15 HumanEva joints ``(N, 15, 3)`` in mm, order of :data:`swarmpose.joints.JOINTS15`.
+
+        Computed :data:`JOINTS_CHUNK` poses at a time, so that a long recording's whole track (20,000 frames)
+        does not hold every joint frame's transform at once (100 MB)."""
+        p = self.check_poses(poses)
+        if len(p) <= JOINTS_CHUNK:
+            return self.joint_positions(p, reference=reference)[:, self.joints15_index]
+        out = np.empty((len(p), len(self.joints15_index), 3))
+        for a in range(0, len(p), JOINTS_CHUNK):
+            out[a:a + JOINTS_CHUNK] = self.joint_positions(p[a:a + JOINTS_CHUNK], reference=reference)[:, self.joints15_index]
+        return out
 
     def cones(self, poses: np.ndarray, transforms: np.ndarray | None = None) -> PlacedCones:
         """Place the truncated cones in the world for poses ``(N, D)``."""
