@@ -191,3 +191,16 @@ def test_refined_recovery_of_every_limb_with_the_frames_fitness(model):
     for bad, cfg in (("recovery_terms=edges", base), ("recovery_terms=fitness", apply_variant(base, "recovery=off"))):
         with pytest.raises(ConfigError, match="recovery_terms"):
             apply_variant(cfg, bad)
+
+
+def test_the_keypoint_joints_option_is_read_and_a_bad_one_refused():
+    from swarmpose.fitness.base import ImageOptions, parse_image_options
+
+    opts = parse_image_options(parse_fitness_options("keypoints=2,keypoint_joints=elbow:0+hip:0.5"), ImageOptions())
+    assert opts.keypoints == 2.0 and opts.keypoint_joints == "elbow:0+hip:0.5"
+    with pytest.raises(ConfigError, match="names none of the joints"):
+        parse_image_options(parse_fitness_options("keypoint_joints=elbows:0"), ImageOptions())
+    assert parse_image_options(parse_fitness_options("keypoint_elbow=0.9"), ImageOptions()).keypoint_elbow == 0.9
+    for bad in ("0", "1.5", "near", "on"):
+        with pytest.raises(ConfigError, match="keypoint_elbow must be a fraction"):
+            parse_image_options(parse_fitness_options(f"keypoint_elbow={bad}"), ImageOptions())

@@ -43,19 +43,20 @@ def _track(path: Path, algo: str, variant: str = "", options: str = "", *, ik_ra
 def test_the_default_weighs_keypoints_where_the_sequence_has_them(short_sequence: Path, keypoint_sequence: Path):
     from swarmpose.body.model import load_model
     from swarmpose.optim import registry
-    from swarmpose.optim.registry import KEYPOINT_WEIGHT
+    from swarmpose.optim.registry import KEYPOINT_ELBOW, KEYPOINT_WEIGHT
     from swarmpose.track.start import has_keypoints
 
     with open_sequence(short_sequence) as plain, open_sequence(keypoint_sequence) as kp:
         assert not has_keypoints(plain) and has_keypoints(kp) and kp.gt_joints is not None
-    assert registry.get("refined-heading", model=load_model("balan31"), fps=20).frame_options == {"keypoints": KEYPOINT_WEIGHT}
+    assert registry.get("refined-heading", model=load_model("balan31"), fps=20).frame_options == {
+        "keypoints": KEYPOINT_WEIGHT, "keypoint_elbow": KEYPOINT_ELBOW}
     # without keypoints: refined-limbs with the turn search, pose for pose
     np.testing.assert_array_equal(_track(short_sequence, "refined-heading", ik_ran=False),
                                   _track(short_sequence, "refined-limbs", "turn=on"))
     # with them: the term in every search, as the run's own --fitness-options would put it there, and the IK
     heading = _track(keypoint_sequence, "refined-heading", ik_ran=True)
     np.testing.assert_array_equal(heading, _track(keypoint_sequence, "refined-limbs", "turn=on+keypoint_ik=on",
-                                                  f"keypoints={KEYPOINT_WEIGHT:g}"))
+                                                  f"keypoints={KEYPOINT_WEIGHT:g},keypoint_elbow={KEYPOINT_ELBOW}"))
     assert not np.array_equal(heading, _track(keypoint_sequence, "refined-limbs", "turn=on+keypoint_ik=on"))
     # the run's own options go over the configuration's: keypoints=0 turns the term off
     np.testing.assert_array_equal(_track(keypoint_sequence, "refined-heading", options="keypoints=0"),
@@ -78,3 +79,43 @@ def test_the_keypoint_ik_variant():
         apply_variant(cfg, "keypoint_ik=yes")
     with pytest.raises(ConfigError, match="keypoint_ik=on or keypoint_ik=off"):
         apply_variant(registry.get("sppso", model=model, fps=20), "keypoint_ik=on")
+
+
+def test_the_detectors_elbows_are_measured_on_the_sequence(short_sequence: Path, tmp_path: Path):
+    """``keypoint_elbow=auto``: keypoints whose elbows lie at 0.85 of the upper arm give about 0.85 (recorded with
+    the run's errors); a sequence without keypoints tracks as without the option."""
+    from swarmpose.fitness.keypoints import detector_elbows
+    from swarmpose.track.tracker import TrackConfig, prepare_track, run_tracker
+
+    out = tmp_path / "walk"
+    with open_sequence(short_sequence) as seq:
+        uv = reproject(seq.cameras, detector_elbows(np.asarray(seq.gt_joints), 0.85))
+        markers = MarkerData.from_dense(JOINTS15, uv, np.full(uv.shape[:-1], 0.9))
+        write_sequence(out, MultiViewSequence(
+            cameras=seq.cameras, frame_rate=seq.frame_rate, n_frames=seq.n_frames, reader=seq._reader,
+            backgrounds=seq.backgrounds(), markers=markers, frame_times=seq.frame_times,
+            gt_joints=np.asarray(seq.gt_joints), world_from_source=seq.world_from_source,
+            source_clip=seq.source_clip, subject_measurements=seq.subject_measurements))
+
+    def run(path: Path, options: str):
+        cfg = TrackConfig(algo="refined-heading", fitness_options=options, max_frames=3, downsample=2)
+        return run_tracker(prepare_track(path, cfg), 0)
+
+    measured = run(out, "keypoint_elbow=auto")
+    assert abs(measured.errors["keypoint_elbow"] - 0.85) < 0.02
+    plain = run(short_sequence, "keypoint_elbow=auto")
+    assert "keypoint_elbow" not in plain.errors
+    np.testing.assert_array_equal(plain.params, run(short_sequence, "").params)
+
+
+def test_the_elbow_fraction_of_straight_arms_and_its_limits():
+    from swarmpose.body.model import load_model
+    from swarmpose.fitness.keypoints import detector_elbows
+    from swarmpose.track.start import ELBOW_FRACTION_RANGE, elbow_fraction
+
+    model = load_model("balan31")
+    straight = np.repeat(model.joints15(model.zero_pose()[None]), 4, axis=0)  # arms straight at the sides
+    assert elbow_fraction(model, straight) == pytest.approx(1.0)
+    assert elbow_fraction(model, detector_elbows(straight, 0.9)) == pytest.approx(0.9)
+    assert elbow_fraction(model, detector_elbows(straight, 0.4)) == ELBOW_FRACTION_RANGE[0]
+    assert elbow_fraction(model, np.full((3, 15, 3), np.nan)) == 1.0

@@ -8,7 +8,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from swarmpose.fitness.keypoints import SWAP, keypoint_cost, keypoint_cost_reference
+from swarmpose.errors import ConfigError
+from swarmpose.fitness.keypoints import (
+    SWAP,
+    detector_elbows,
+    joint_weights,
+    keypoint_cost,
+    keypoint_cost_reference,
+)
 from swarmpose.io.sequence import MarkerData, MultiViewSequence, open_sequence, write_sequence
 from swarmpose.joints import JOINTS15
 from swarmpose.triangulation import reproject
@@ -47,6 +54,44 @@ def test_keypoint_cost_matches_its_reference_and_is_robust():
     assert keypoint_cost(truth[None], cams, kp, conf)[0] < 1e-12  # the swapped view costs nothing either
     far = truth[None] + [0, 5000, 0]
     assert 0.9 < keypoint_cost(far, cams, kp, conf)[0] <= 1.0  # bounded: one term costs at most 1
+    a = joint_weights("elbow:0+l_wrist:3")  # one-sided weights: the swapped view must weigh the model's joints
+    assert np.allclose(keypoint_cost(poses, cams, kp, conf, weights=a),
+                       keypoint_cost_reference(poses, cams, kp, conf, weights=a), atol=1e-12)
+    elbows = [JOINTS15.index("l_elbow"), JOINTS15.index("r_elbow")]
+    moved = truth.copy()
+    moved[elbows] += [0, 0, 400]  # the elbows far off: they cost something, unless their weight is 0
+    assert keypoint_cost(moved[None], cams, kp, conf)[0] > 0.05
+    assert keypoint_cost(moved[None], cams, kp, conf, weights=a)[0] < 1e-12
+    # the detector's elbows taken nearer the shoulders: the plain loops agree, and keypoints at those elbows cost 0
+    assert np.allclose(keypoint_cost(poses, cams, kp, conf, weights=a, elbow=0.9),
+                       keypoint_cost_reference(poses, cams, kp, conf, weights=a, elbow=0.9), atol=1e-12)
+    kp_near = reproject(cams, detector_elbows(truth, 0.9))
+    assert keypoint_cost(truth[None], cams, kp_near, conf, elbow=0.9)[0] < 1e-12
+    assert keypoint_cost(truth[None], cams, kp_near, conf)[0] > 1e-4
+
+
+def test_detector_elbows_move_along_the_upper_arm_only():
+    rng = np.random.default_rng(2)
+    joints = rng.normal(0, 300, (4, 15, 3))
+    assert detector_elbows(joints, 1.0) is joints
+    moved = detector_elbows(joints, 0.8)
+    for side in "lr":
+        s, e = JOINTS15.index(f"{side}_shoulder"), JOINTS15.index(f"{side}_elbow")
+        np.testing.assert_allclose(moved[:, e] - joints[:, s], 0.8 * (joints[:, e] - joints[:, s]))
+    others = [j for j in range(15) if "elbow" not in JOINTS15[j]]
+    np.testing.assert_array_equal(moved[:, others], joints[:, others])
+
+
+def test_keypoint_joint_weights_are_read_and_refused_with_the_joints_named():
+    assert joint_weights("") == (1.0,) * 15
+    a = joint_weights("elbow:0.25+hip:0.5+r_hip:2")
+    assert a[JOINTS15.index("l_elbow")] == a[JOINTS15.index("r_elbow")] == 0.25
+    assert a[JOINTS15.index("l_hip")] == 0.5 and a[JOINTS15.index("r_hip")] == 2.0  # later parts win
+    assert a[JOINTS15.index("pelvis")] == 1.0
+    for bad, says in [("elbow", "PART:WEIGHT"), ("knuckle:1", "names none of the joints"), ("hip:-1", ">= 0"),
+                      ("hip:x", "PART:WEIGHT")]:
+        with pytest.raises(ConfigError, match=says):
+            joint_weights(bad)
 
 
 @pytest.fixture(scope="module")

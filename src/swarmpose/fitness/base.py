@@ -9,13 +9,14 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from swarmpose.errors import ConfigError, ShapeError, option_items
+from swarmpose.fitness.keypoints import joint_weights
 
 __all__ = ["Fitness", "ImageOptions", "parse_image_options", "TERMS", "silhouette_score", "edge_score",
            "deutscher_reid_log_weight", "check_scores", "parse_fitness_options"]
 
 #: Values of the ``"terms"`` option.
 TERMS = ("silhouette+edge", "silhouette", "edge", "distance")
-_OPTION_KEYS = ("edge_cones", "edge_top", "terms", "distance", "keypoints")
+_OPTION_KEYS = ("edge_cones", "edge_top", "terms", "distance", "keypoints", "keypoint_joints", "keypoint_elbow")
 
 
 @runtime_checkable
@@ -62,6 +63,12 @@ class ImageOptions:
     keypoints : float
         Weight of the keypoint term (:mod:`swarmpose.fitness.keypoints`) added where the bound frame carries
         a detector's keypoints (0: off, the papers' fitness).
+    keypoint_joints : str
+        The joints' weights inside the keypoint term, ``"elbow:0.25+hip:0.5"``
+        (:func:`swarmpose.fitness.keypoints.joint_weights`; "" = all 1).
+    keypoint_elbow : float
+        Where the detector's elbow is taken to lie on the model's upper arm, as a fraction of it from the
+        shoulder (:func:`swarmpose.fitness.keypoints.detector_elbows`; 1: at the model's elbow).
     """
 
     edge_cones: str | tuple[str, ...] = "all"
@@ -69,6 +76,8 @@ class ImageOptions:
     terms: str = "silhouette+edge"
     distance: float = 0.0
     keypoints: float = 0.0
+    keypoint_joints: str = ""
+    keypoint_elbow: float = 1.0
 
     def __post_init__(self) -> None:
         if self.terms not in TERMS:
@@ -86,6 +95,16 @@ class ImageOptions:
             if isinstance(value, bool) or not (np.isfinite(w) and w >= 0):
                 raise ConfigError(f"{name} must be a weight >= 0, got {value!r}")
             object.__setattr__(self, name, w)
+        try:
+            f = float(self.keypoint_elbow)
+        except (TypeError, ValueError):
+            f = float("nan")
+        if isinstance(self.keypoint_elbow, bool) or not 0 < f <= 1:
+            raise ConfigError(f"keypoint_elbow must be a fraction of the upper arm in (0, 1] (or auto, which a track "
+                              f"measures on its sequence), got {self.keypoint_elbow!r}")
+        object.__setattr__(self, "keypoint_elbow", f)
+        object.__setattr__(self, "keypoint_joints", str(self.keypoint_joints))
+        joint_weights(self.keypoint_joints)  # checks the text: a ConfigError names what is wrong
 
 
 def parse_image_options(options: Mapping[str, Any] | None, default: ImageOptions) -> ImageOptions:
@@ -105,7 +124,9 @@ def parse_image_options(options: Mapping[str, Any] | None, default: ImageOptions
                         edge_top=options.get("edge_top", default.edge_top),
                         terms=options.get("terms", default.terms),
                         distance=options.get("distance", default.distance),
-                        keypoints=options.get("keypoints", default.keypoints))
+                        keypoints=options.get("keypoints", default.keypoints),
+                        keypoint_joints=options.get("keypoint_joints", default.keypoint_joints),
+                        keypoint_elbow=options.get("keypoint_elbow", default.keypoint_elbow))
 
 
 def silhouette_score(Y: np.ndarray, P: np.ndarray, O: np.ndarray, a: float = 0.5) -> np.ndarray:

@@ -27,7 +27,7 @@ from swarmpose.fitness.distance import (
     part_distances,
     prepare_distance_maps,
 )
-from swarmpose.fitness.keypoints import keypoint_cost
+from swarmpose.fitness.keypoints import joint_weights, keypoint_cost
 from swarmpose.render.project import DEFAULT_N_RIM, DEFAULT_NEAR_MM
 from swarmpose.render.samples import DEFAULT_EDGE_SPACING_PX, TOP_EDGE_CONE, edge_cone_mask
 
@@ -139,7 +139,8 @@ class ImageFitness:
         ----------
         poses : (N, D) array_like
         options : mapping, optional
-            Per-stage overrides of ``edge_cones``, ``edge_top``, ``terms``, ``distance``, ``keypoints``.
+            Per-stage overrides of ``edge_cones``, ``edge_top``, ``terms``, ``distance``, ``keypoints``,
+            ``keypoint_joints``, ``keypoint_elbow``.
 
         Raises
         ------
@@ -166,8 +167,9 @@ class ImageFitness:
                 scores += opts.distance * self.distance_score(p)
         if opts.keypoints > 0 and prepared.features.keypoints is not None:
             f = prepared.features
+            a = joint_weights(opts.keypoint_joints) if opts.keypoint_joints else None
             scores -= opts.keypoints * keypoint_cost(self.model.joints15(p), prepared.cameras, f.keypoints,
-                                                     f.keypoint_confidence)
+                                                     f.keypoint_confidence, weights=a, elbow=opts.keypoint_elbow)
         if bad is not None:
             scores[bad] = np.nan  # the optimisers' "invalid" (shared/design.md; optim.base score rule)
         return scores

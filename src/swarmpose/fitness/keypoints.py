@@ -6,8 +6,8 @@ confidences (an imported recording), the image fitnesses can add ``w * K(x)`` wi
     K(x) = - mean_c  min_{labels}  sum_j w_cj rho(|pi_c(J_j(x)) - k_cj|) / sum_j w_cj,
     rho(e) = e^2 / (e^2 + s^2)                                     (Geman & McClure 1987)
 
-over the views ``c`` that have confident keypoints (``w_cj`` = confidence, 0 below
-:data:`MIN_CONFIDENCE`). ``rho`` is bounded, so a misdetected joint costs at most 1 and cannot drag the
+over the views ``c`` that have confident keypoints (``w_cj`` = confidence times the joint's weight ``a_j``,
+0 below :data:`MIN_CONFIDENCE`; ``a_j = 1`` unless the ``keypoint_joints`` option says otherwise). ``rho`` is bounded, so a misdetected joint costs at most 1 and cannot drag the
 pose; ``min_labels`` takes, per view, the better of the labels as detected and left and right exchanged,
 so a view whose detector swapped the sides still helps. ``s`` is :data:`SCALE` of the image diagonal.
 ``K`` lies in ``[-1, 0]``.
@@ -24,14 +24,43 @@ import numpy as np
 
 from swarmpose.camera import Camera
 from swarmpose.detection.joints import MIN_CONFIDENCE
+from swarmpose.errors import ConfigError
 from swarmpose.joints import JOINTS15, SWAP15
 
-__all__ = ["keypoint_cost", "keypoint_cost_reference", "SCALE", "SWAP"]
+__all__ = ["keypoint_cost", "keypoint_cost_reference", "joint_weights", "detector_elbows", "SCALE", "SWAP"]
 
 #: Robust scale of the residual, as a fraction of the image diagonal (about 22 px at 544 x 960).
 SCALE = 0.02
+_INDEX = {name: j for j, name in enumerate(JOINTS15)}
 #: The permutation of the 15 joints that exchanges left and right.
 SWAP = np.array(SWAP15)
+
+
+def joint_weights(spec: str) -> tuple[float, ...]:
+    """The 15 joints' weights ``a_j`` from ``"elbow:0.25+hip:0.5"``: each ``part:w`` sets every joint whose name
+    contains ``part`` (``elbow``: both elbows; ``l_wrist``: one); later parts win; "" gives all 1.
+
+    Raises
+    ------
+    ConfigError
+        A part that names no joint, or a weight that is not a number >= 0.
+    """
+    a = [1.0] * len(JOINTS15)
+    for item in filter(None, (t.strip() for t in str(spec).split("+"))):
+        part, sep, value = item.partition(":")
+        try:
+            w = float(value)
+        except ValueError:
+            w = float("nan")
+        if not sep or not (np.isfinite(w) and w >= 0):
+            raise ConfigError(f"keypoint_joints: {item!r} is not PART:WEIGHT with a weight >= 0 "
+                              f"(e.g. elbow:0.25+hip:0.5)")
+        hit = [j for j, name in enumerate(JOINTS15) if part.strip() and part.strip() in name]
+        if not hit:
+            raise ConfigError(f"keypoint_joints: {part!r} names none of the joints {', '.join(JOINTS15)}")
+        for j in hit:
+            a[j] = w
+    return tuple(a)
 
 
 def _weights(confidence: np.ndarray, keypoints: np.ndarray) -> np.ndarray:
@@ -39,8 +68,23 @@ def _weights(confidence: np.ndarray, keypoints: np.ndarray) -> np.ndarray:
     return np.where(ok, confidence, 0.0)
 
 
+def detector_elbows(joints: np.ndarray, fraction: float) -> np.ndarray:
+    """``joints (..., 15, 3)`` with each elbow moved to ``fraction`` of the way from its shoulder (1: unchanged).
+
+    A detector places the elbow nearer the shoulder than a skeleton's joint centre: MediaPipe Pose splits the
+    shoulder-wrist length at 0.51-0.55 on the synthetic renders, where their skeletons split it at 0.56-0.63."""
+    if fraction == 1.0:
+        return joints
+    out = np.array(joints, dtype=np.float64, copy=True)
+    for side in ("l", "r"):
+        s, e = _INDEX[f"{side}_shoulder"], _INDEX[f"{side}_elbow"]
+        out[..., e, :] = out[..., s, :] + fraction * (out[..., e, :] - out[..., s, :])
+    return out
+
+
 def keypoint_cost(joints: np.ndarray, cameras: Sequence[Camera], keypoints: np.ndarray,
-                  confidence: np.ndarray, scale_px: float | None = None) -> np.ndarray:
+                  confidence: np.ndarray, scale_px: float | None = None,
+                  weights: Sequence[float] | None = None, elbow: float = 1.0) -> np.ndarray:
     """``-K``: the robust keypoint cost ``(N,)`` in ``[0, 1]`` of model joints ``(N, 15, 3)`` (mm).
 
     Parameters
@@ -50,24 +94,33 @@ def keypoint_cost(joints: np.ndarray, cameras: Sequence[Camera], keypoints: np.n
     keypoints : (C, 15, 2) px, NaN where absent; confidence : (C, 15)
     scale_px : float, optional
         ``s``; default :data:`SCALE` of the first camera's image diagonal.
+    weights : (15,) float, optional
+        The joints' weights ``a_j`` (:func:`joint_weights`); default all 1.
+    elbow : float
+        Where the detector's elbow is taken to lie on the model's upper arm (:func:`detector_elbows`).
     """
-    J = np.asarray(joints, dtype=np.float64)
+    J = detector_elbows(np.asarray(joints, dtype=np.float64), elbow)
     s = SCALE * float(np.hypot(cameras[0].width, cameras[0].height)) if scale_px is None else float(scale_px)
+    a = None if weights is None else np.asarray(weights, dtype=np.float64)
     total = np.zeros(J.shape[0])
     views = 0
     for c, cam in enumerate(cameras):
         kp = np.asarray(keypoints[c], dtype=np.float64)
         w = _weights(np.asarray(confidence[c], dtype=np.float64), kp)
-        if w.sum() <= 0:
+        # per labelling, model joint j's weight a_j times its detection's confidence
+        labellings = [(perm, w[perm] if a is None else w[perm] * a) for perm in (slice(None), SWAP)]
+        if all(ww.sum() <= 0 for _, ww in labellings):
             continue
         uv, z = cam.project_with_depth(J)  # (N, 15, 2)
         behind = ~(z > 0).all(axis=1)
         k = np.nan_to_num(kp)
         costs = []
-        for perm in (slice(None), SWAP):
+        for perm, ww in labellings:
+            if ww.sum() <= 0:
+                costs.append(np.full(J.shape[0], np.inf))
+                continue
             e2 = ((uv - k[perm]) ** 2).sum(axis=-1)  # (N, 15)
             rho = e2 / (e2 + s * s)
-            ww = w[perm]
             costs.append(np.nansum(rho * ww, axis=1) / ww.sum())
         view = np.minimum(costs[0], costs[1])
         total += np.where(behind | ~np.isfinite(view), 1.0, view)
@@ -76,17 +129,28 @@ def keypoint_cost(joints: np.ndarray, cameras: Sequence[Camera], keypoints: np.n
 
 
 def keypoint_cost_reference(joints: np.ndarray, cameras: Sequence[Camera], keypoints: np.ndarray,
-                            confidence: np.ndarray, scale_px: float | None = None) -> np.ndarray:
+                            confidence: np.ndarray, scale_px: float | None = None,
+                            weights: Sequence[float] | None = None, elbow: float = 1.0) -> np.ndarray:
     """:func:`keypoint_cost` written as plain loops over poses, views, labellings and joints."""
-    J = np.asarray(joints, dtype=np.float64)
+    J = np.array(joints, dtype=np.float64)
+    for n in range(len(J)):
+        for side in ("l", "r"):
+            sh, el = J[n, _INDEX[f"{side}_shoulder"]].copy(), J[n, _INDEX[f"{side}_elbow"]].copy()
+            J[n, _INDEX[f"{side}_elbow"]] = sh + elbow * (el - sh)
+    a = [1.0] * len(JOINTS15) if weights is None else [float(v) for v in weights]
     s = SCALE * float(np.hypot(cameras[0].width, cameras[0].height)) if scale_px is None else float(scale_px)
     out = np.zeros(len(J))
     for n in range(len(J)):
         acc, views = 0.0, 0
         for c, cam in enumerate(cameras):
-            weights = [float(confidence[c][j]) if np.isfinite(keypoints[c][j]).all()
-                       and confidence[c][j] >= MIN_CONFIDENCE else 0.0 for j in range(len(JOINTS15))]
-            if sum(weights) <= 0:
+            conf = [float(confidence[c][j]) if np.isfinite(keypoints[c][j]).all()
+                    and confidence[c][j] >= MIN_CONFIDENCE else 0.0 for j in range(len(JOINTS15))]
+            labellings = []
+            for perm in (list(range(len(JOINTS15))), list(SWAP)):
+                wl = [conf[perm[j]] * a[j] for j in range(len(JOINTS15))]  # model joint j, detection perm[j]
+                if sum(wl) > 0:
+                    labellings.append((perm, wl))
+            if not labellings:
                 continue
             views += 1
             uv, z = cam.project_with_depth(J[n])
@@ -94,15 +158,14 @@ def keypoint_cost_reference(joints: np.ndarray, cameras: Sequence[Camera], keypo
                 acc += 1.0
                 continue
             best = np.inf
-            for perm in (list(range(len(JOINTS15))), list(SWAP)):
+            for perm, wl in labellings:
                 num = den = 0.0
                 for j in range(len(JOINTS15)):
-                    wj = weights[perm[j]]
-                    if wj == 0:
+                    if wl[j] == 0:
                         continue
                     e2 = float(((uv[j] - keypoints[c][perm[j]]) ** 2).sum())
-                    num += wj * e2 / (e2 + s * s)
-                    den += wj
+                    num += wl[j] * e2 / (e2 + s * s)
+                    den += wl[j]
                 best = min(best, num / den)
             acc += best
         out[n] = acc / views if views else 0.0

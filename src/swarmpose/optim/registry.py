@@ -611,11 +611,12 @@ def _refined_limbs(model: Any, fps: float) -> RefinedConfig:
 
 def _refined_heading(model: Any, fps: float) -> RefinedConfig:
     """The default tracker: ``refined-limbs`` with the body's heading searched again on every frame (:data:`TURN_SEARCH`),
-    and, where the sequence carries a detector's keypoints, the keypoint term (weight :data:`KEYPOINT_WEIGHT`) in every
-    search of a frame and the keypoint IK after them. On a sequence without keypoints it is ``refined-limbs --variant
-    turn=on``, pose for pose."""
+    and, where the sequence carries a detector's keypoints, the keypoint term (weight :data:`KEYPOINT_WEIGHT`, the
+    detector's elbows where :data:`KEYPOINT_ELBOW` puts them) in every search of a frame and the keypoint IK after
+    them. On a sequence without keypoints it is ``refined-limbs --variant turn=on``, pose for pose."""
     return dataclasses.replace(_refined_limbs(model, fps), name="refined-heading", turn_search=TURN_SEARCH,
-                               frame_options={"keypoints": KEYPOINT_WEIGHT}, keypoint_ik=True)
+                               frame_options={"keypoints": KEYPOINT_WEIGHT, "keypoint_elbow": KEYPOINT_ELBOW},
+                               keypoint_ik=True)
 
 
 #: Weight of the keypoint term in ``refined-keypoints``, chosen on the shared recording (cam04 held out, 20 fps,
@@ -623,6 +624,13 @@ def _refined_heading(model: Any, fps: float) -> RefinedConfig:
 #: the held-out median joint error was 11.8 / 9.1 / 8.8 / 8.6 / 8.7 / 8.3 / 8.3 px (half resolution) at
 #: W = 0 / 0.5 / 1 / 2 / 4 / 10 / 30; the gain levels off from 2.
 KEYPOINT_WEIGHT = 2.0
+
+#: Where the default's keypoint term takes the detector's elbows to lie: ``auto`` measures it per sequence, the
+#: detector's split of the arm over the model's (:func:`swarmpose.track.start.elbow_fraction`). MediaPipe Pose puts
+#: the elbow 15-68 mm nearer the shoulder than the synthetic clips' skeletons (0.87-1.0 of the upper arm; 0.91 of
+#: the shared recording's subject, whose arms are split at Winter's 0.565). Synthetic clips with detected
+#: keypoints, 3 runs: the 8 clips' mean 22.6 -> 21.5 mm, the walk 20.8 -> 18.3 (docs/results.md).
+KEYPOINT_ELBOW = "auto"
 
 
 def _refined_keypoints(model: Any, fps: float) -> RefinedConfig:

@@ -20,7 +20,7 @@ from swarmpose.joints import BONES15, JOINTS15
 from swarmpose.triangulation import residuals, triangulate
 
 __all__ = ["keypoint_joints", "keypoint_ik", "keypoint_start", "tracked_views", "has_keypoints", "fill_gaps",
-           "bone_lengths", "TRUNK_JOINTS",
+           "bone_lengths", "elbow_fraction", "ELBOW_FRACTION_RANGE", "TRUNK_JOINTS",
            "silhouette_centre", "silhouette_start", "heading_candidates", "START_HEADINGS", "START_SEARCHES",
            "START_ROUNDS"]
 
@@ -60,6 +60,38 @@ def keypoint_joints(seq: Any, frames: np.ndarray, *, views: list[int] | None = N
     w2 = np.where(np.isfinite(r) & (r < thr), w, 0.0)
     again = triangulate(cams, kp, w2)
     return np.where(np.isfinite(again), again, pts)
+
+
+#: The range :func:`elbow_fraction` keeps its answer in.
+ELBOW_FRACTION_RANGE = (0.7, 1.0)
+
+
+def _arm_split(joints: np.ndarray) -> np.ndarray:
+    """``|shoulder elbow| / (|shoulder elbow| + |elbow wrist|)`` per frame and side ``(T, 2)`` of ``(T, 15, 3)``."""
+    idx = {n: j for j, n in enumerate(JOINTS15)}
+    out = []
+    for side in ("l", "r"):
+        s, e, w = (joints[:, idx[f"{side}_{n}"]] for n in ("shoulder", "elbow", "wrist"))
+        upper, fore = np.linalg.norm(e - s, axis=-1), np.linalg.norm(w - e, axis=-1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            out.append(upper / (upper + fore))
+    return np.stack(out, axis=1)
+
+
+def elbow_fraction(model: Any, joints: np.ndarray) -> float:
+    """Where the detector's elbow lies on the model's upper arm, as a fraction of it from the shoulder.
+
+    The detector's split of the arm (the median over frames and sides of ``|SE| / (|SE| + |EW|)`` of the
+    triangulated keypoints ``joints (T, 15, 3)``) over the model's own (its bone lengths), kept in
+    :data:`ELBOW_FRACTION_RANGE`; 1.0 when no frame shows a whole arm. The keypoint term then compares the
+    detector's elbows with that point of the model's upper arms (``keypoint_elbow``)."""
+    detected = _arm_split(np.asarray(joints, dtype=np.float64)).ravel()
+    detected = detected[np.isfinite(detected)]
+    if not detected.size:
+        return 1.0
+    own = float(np.mean(_arm_split(model.joints15(model.zero_pose()[None]))))
+    lo, hi = ELBOW_FRACTION_RANGE
+    return float(np.clip(np.median(detected) / own, lo, hi))
 
 
 def bone_lengths(joints: np.ndarray) -> np.ndarray:

@@ -51,6 +51,7 @@ from swarmpose.track.progress import RunProgress
 from swarmpose.track.recovery import LIMBS, Recovery
 from swarmpose.track.smooth import smooth_params
 from swarmpose.track.start import (
+    elbow_fraction,
     has_keypoints,
     keypoint_joints,
     keypoint_start,
@@ -137,6 +138,8 @@ class TrackConfig:
         from swarmpose.fitness.base import ImageOptions, parse_image_options
 
         if self.fitness_kind in IMAGE_FITNESS:
+            if options.get("keypoint_elbow") == "auto":  # a number once the track has measured its sequence
+                options = {**options, "keypoint_elbow": 1.0}
             parse_image_options(options, ImageOptions())
             known = tuple(BACKENDS)
         else:
@@ -662,6 +665,13 @@ def run_tracker(
     kp_joints = None  # the tracked views' triangulated keypoints, for the configurations that fit them per frame
     if getattr(algo, "keypoint_ik", False) and has_keypoints(seq):
         kp_joints = keypoint_joints(seq, setup.frame_indices, views=views)
+    elbow = None  # keypoint_elbow=auto: the detector's elbows on the model's upper arms, measured on this sequence
+    if extra_options.get("keypoint_elbow") == "auto":
+        if keypoints is None:
+            del extra_options["keypoint_elbow"]
+        else:
+            joints = kp_joints if kp_joints is not None else keypoint_joints(seq, setup.frame_indices, views=views)
+            elbow = extra_options["keypoint_elbow"] = elbow_fraction(model, joints)
 
     features_store = None
     if feature_cache is not None and cfg.fitness_kind in IMAGE_FITNESS:
@@ -763,6 +773,8 @@ def run_tracker(
                          "acceleration_mm_s2": joint_acceleration(joints, setup.frame_times),
                          "gt_acceleration_mm_s2": (joint_acceleration(setup.gt_joints, setup.frame_times)
                                                    if setup.has_ground_truth else None)}
+        if elbow is not None:
+            result.errors["keypoint_elbow"] = elbow
         if passes is not None and "backward_kept" in passes:
             result.errors["backward_kept"] = int(passes["backward_kept"].sum())
             result.errors["backward_mixed"] = int(passes["backward_mixed"].sum())
