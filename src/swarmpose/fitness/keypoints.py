@@ -7,9 +7,11 @@ confidences (an imported recording), the image fitnesses can add ``w * K(x)`` wi
     rho(e) = e^2 / (e^2 + s^2)                                     (Geman & McClure 1987)
 
 over the views ``c`` that have confident keypoints (``w_cj`` = confidence times the joint's weight ``a_j``,
-0 below :data:`MIN_CONFIDENCE`; ``a_j = 1`` unless the ``keypoint_joints`` option says otherwise). ``rho`` is bounded, so a misdetected joint costs at most 1 and cannot drag the
-pose; ``min_labels`` takes, per view, the better of the labels as detected and left and right exchanged,
-so a view whose detector swapped the sides still helps. ``s`` is :data:`SCALE` of the image diagonal.
+0 below :data:`MIN_CONFIDENCE`; ``a_j = 1`` unless the ``keypoint_joints`` option says otherwise; the model's
+elbows ``J_j`` taken where the ``keypoint_elbow`` option puts the detector's, :func:`detector_elbows`).
+``rho`` is bounded, so a misdetected joint costs at most 1 and cannot drag the pose; ``min_labels`` takes,
+per view, the better of the labels as detected and left and right exchanged, so a view whose detector
+swapped the sides still helps. ``s`` is :data:`SCALE` of the image diagonal.
 ``K`` lies in ``[-1, 0]``.
 
 :func:`keypoint_cost` is batched over poses; :func:`keypoint_cost_reference` is the plain loop it is
@@ -72,7 +74,8 @@ def detector_elbows(joints: np.ndarray, fraction: float) -> np.ndarray:
     """``joints (..., 15, 3)`` with each elbow moved to ``fraction`` of the way from its shoulder (1: unchanged).
 
     A detector places the elbow nearer the shoulder than a skeleton's joint centre: MediaPipe Pose splits the
-    shoulder-wrist length at 0.51-0.55 on the synthetic renders, where their skeletons split it at 0.56-0.63."""
+    shoulder-wrist length at 0.50-0.59 on the shared clips' renders (the median per clip and side), where their
+    skeletons split it at 0.56-0.63, and its elbows lie 15-68 mm up the upper arm from theirs."""
     if fraction == 1.0:
         return joints
     out = np.array(joints, dtype=np.float64, copy=True)
