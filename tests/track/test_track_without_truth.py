@@ -80,6 +80,8 @@ def test_detector_elbows_move_along_the_upper_arm_only():
         np.testing.assert_allclose(moved[:, e] - joints[:, s], 0.8 * (joints[:, e] - joints[:, s]))
     others = [j for j in range(15) if "elbow" not in JOINTS15[j]]
     np.testing.assert_array_equal(moved[:, others], joints[:, others])
+    # and back with 1 / fraction
+    np.testing.assert_allclose(detector_elbows(moved, 1 / 0.8), joints, atol=1e-9)
 
 
 def test_keypoint_joint_weights_are_read_and_refused_with_the_joints_named():
