@@ -13,14 +13,11 @@ from swarmpose.joints import JOINTS15
 from swarmpose.triangulation import reproject
 
 
-@pytest.fixture(scope="module")
-def keypoint_sequence(short_sequence: Path, tmp_path_factory) -> Path:
-    """The short walk with its ground truth kept and keypoints added: the truth projected, 4 px of noise."""
-    rng = np.random.default_rng(3)
-    out = tmp_path_factory.mktemp("kp") / "walk"
+def _with_keypoints(short_sequence: Path, out: Path, keypoints_of) -> Path:
+    """The short walk with its ground truth kept and ``keypoints_of(cameras, truth)`` (T, C, 15, 2) as its
+    keypoints, confidence 0.9."""
     with open_sequence(short_sequence) as seq:
-        uv = reproject(seq.cameras, np.asarray(seq.gt_joints))
-        uv = uv + rng.normal(0, 4.0, uv.shape)
+        uv = keypoints_of(seq.cameras, np.asarray(seq.gt_joints))
         markers = MarkerData.from_dense(JOINTS15, uv, np.full(uv.shape[:-1], 0.9))
         write_sequence(out, MultiViewSequence(
             cameras=seq.cameras, frame_rate=seq.frame_rate, n_frames=seq.n_frames, reader=seq._reader,
@@ -28,6 +25,18 @@ def keypoint_sequence(short_sequence: Path, tmp_path_factory) -> Path:
             gt_joints=np.asarray(seq.gt_joints), world_from_source=seq.world_from_source,
             source_clip=seq.source_clip, subject_measurements=seq.subject_measurements))
     return out
+
+
+@pytest.fixture(scope="module")
+def keypoint_sequence(short_sequence: Path, tmp_path_factory) -> Path:
+    """The short walk with its ground truth kept and keypoints added: the truth projected, 4 px of noise."""
+    rng = np.random.default_rng(3)
+
+    def noisy(cameras, truth: np.ndarray) -> np.ndarray:
+        uv = reproject(cameras, truth)
+        return uv + rng.normal(0, 4.0, uv.shape)
+
+    return _with_keypoints(short_sequence, tmp_path_factory.mktemp("kp") / "walk", noisy)
 
 
 def _track(path: Path, algo: str, variant: str = "", options: str = "", *, ik_ran: bool | None = None) -> np.ndarray:
@@ -87,15 +96,8 @@ def test_the_detectors_elbows_are_measured_on_the_sequence(short_sequence: Path,
     from swarmpose.fitness.keypoints import detector_elbows
     from swarmpose.track.tracker import TrackConfig, prepare_track, run_tracker
 
-    out = tmp_path / "walk"
-    with open_sequence(short_sequence) as seq:
-        uv = reproject(seq.cameras, detector_elbows(np.asarray(seq.gt_joints), 0.85))
-        markers = MarkerData.from_dense(JOINTS15, uv, np.full(uv.shape[:-1], 0.9))
-        write_sequence(out, MultiViewSequence(
-            cameras=seq.cameras, frame_rate=seq.frame_rate, n_frames=seq.n_frames, reader=seq._reader,
-            backgrounds=seq.backgrounds(), markers=markers, frame_times=seq.frame_times,
-            gt_joints=np.asarray(seq.gt_joints), world_from_source=seq.world_from_source,
-            source_clip=seq.source_clip, subject_measurements=seq.subject_measurements))
+    out = _with_keypoints(short_sequence, tmp_path / "walk",
+                          lambda cameras, truth: reproject(cameras, detector_elbows(truth, 0.85)))
 
     def run(path: Path, options: str):
         cfg = TrackConfig(algo="refined-heading", fitness_options=options, max_frames=3, downsample=2)

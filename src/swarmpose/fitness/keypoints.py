@@ -21,23 +21,24 @@ tested against.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from functools import lru_cache
 
 import numpy as np
 
 from swarmpose.camera import Camera
 from swarmpose.detection.joints import MIN_CONFIDENCE
 from swarmpose.errors import ConfigError
-from swarmpose.joints import JOINTS15, SWAP15
+from swarmpose.joints import JOINT_INDEX, JOINTS15, SWAP15
 
 __all__ = ["keypoint_cost", "keypoint_cost_reference", "joint_weights", "detector_elbows", "SCALE", "SWAP"]
 
 #: Robust scale of the residual, as a fraction of the image diagonal (about 22 px at 544 x 960).
 SCALE = 0.02
-_INDEX = {name: j for j, name in enumerate(JOINTS15)}
 #: The permutation of the 15 joints that exchanges left and right.
 SWAP = np.array(SWAP15)
 
 
+@lru_cache(maxsize=32)  # read once per text, not on every evaluation of the fitness
 def joint_weights(spec: str) -> tuple[float, ...]:
     """The 15 joints' weights ``a_j`` from ``"elbow:0.25+hip:0.5"``: each ``part:w`` sets every joint whose name
     contains ``part`` (``elbow``: both elbows; ``l_wrist``: one); later parts win; "" gives all 1.
@@ -80,7 +81,7 @@ def detector_elbows(joints: np.ndarray, fraction: float) -> np.ndarray:
         return joints
     out = np.array(joints, dtype=np.float64, copy=True)
     for side in ("l", "r"):
-        s, e = _INDEX[f"{side}_shoulder"], _INDEX[f"{side}_elbow"]
+        s, e = JOINT_INDEX[f"{side}_shoulder"], JOINT_INDEX[f"{side}_elbow"]
         out[..., e, :] = out[..., s, :] + fraction * (out[..., e, :] - out[..., s, :])
     return out
 
@@ -138,8 +139,8 @@ def keypoint_cost_reference(joints: np.ndarray, cameras: Sequence[Camera], keypo
     J = np.array(joints, dtype=np.float64)
     for n in range(len(J)):
         for side in ("l", "r"):
-            sh, el = J[n, _INDEX[f"{side}_shoulder"]].copy(), J[n, _INDEX[f"{side}_elbow"]].copy()
-            J[n, _INDEX[f"{side}_elbow"]] = sh + elbow * (el - sh)
+            sh, el = J[n, JOINT_INDEX[f"{side}_shoulder"]].copy(), J[n, JOINT_INDEX[f"{side}_elbow"]].copy()
+            J[n, JOINT_INDEX[f"{side}_elbow"]] = sh + elbow * (el - sh)
     a = [1.0] * len(JOINTS15) if weights is None else [float(v) for v in weights]
     s = SCALE * float(np.hypot(cameras[0].width, cameras[0].height)) if scale_px is None else float(scale_px)
     out = np.zeros(len(J))

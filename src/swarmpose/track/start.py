@@ -16,7 +16,7 @@ import numpy as np
 
 from swarmpose.detection.joints import MIN_CONFIDENCE
 from swarmpose.errors import ConfigError, DataError
-from swarmpose.joints import BONES15, JOINTS15
+from swarmpose.joints import BONES15, JOINT_INDEX, JOINTS15
 from swarmpose.triangulation import residuals, triangulate
 
 __all__ = ["keypoint_joints", "keypoint_ik", "keypoint_start", "tracked_views", "has_keypoints", "fill_gaps",
@@ -68,10 +68,9 @@ ELBOW_FRACTION_RANGE = (0.7, 1.0)
 
 def _arm_split(joints: np.ndarray) -> np.ndarray:
     """``|shoulder elbow| / (|shoulder elbow| + |elbow wrist|)`` per frame and side ``(T, 2)`` of ``(T, 15, 3)``."""
-    idx = {n: j for j, n in enumerate(JOINTS15)}
     out = []
     for side in ("l", "r"):
-        s, e, w = (joints[:, idx[f"{side}_{n}"]] for n in ("shoulder", "elbow", "wrist"))
+        s, e, w = (joints[:, JOINT_INDEX[f"{side}_{n}"]] for n in ("shoulder", "elbow", "wrist"))
         upper, fore = np.linalg.norm(e - s, axis=-1), np.linalg.norm(w - e, axis=-1)
         with np.errstate(invalid="ignore", divide="ignore"):
             out.append(upper / (upper + fore))
