@@ -115,3 +115,32 @@ def test_measures_are_translation_invariant_and_bounded(seed, shift, scale):
     a, b = track_errors(est, gt), track_errors(est + shift, gt + shift)
     assert a.d_mean == pytest.approx(b.d_mean, abs=1e-6) and a.mmta == b.mmta
     assert 0.0 <= a.mmta <= 1.0 and 0.0 <= a.mmtp <= MMTA_DELTA_MM and a.d_mean <= a.d_max + 1e-9
+
+
+def test_distances_errors_and_acceleration_in_steps_equal_one_step(monkeypatch):
+    """A long track is measured FRAMES_CHUNK frames at a time: the same numbers as all frames at once, with
+    missing joints, frames without ground truth and uneven time steps across the steps' borders."""
+    from swarmpose import metrics
+
+    rng = np.random.default_rng(3)
+    T = 103
+    est, gt = rng.normal(0, 300, (T, 15, 3)), rng.normal(0, 300, (T, 15, 3))
+    est[[7, 40], 4] = np.nan
+    t = np.cumsum(rng.uniform(0.01, 0.05, T))
+    h0, h1 = (t[1:-1] - t[:-2])[:, None, None], (t[2:] - t[1:-1])[:, None, None]
+    acc = np.linalg.norm(2.0 * (h0 * est[2:] - (h0 + h1) * est[1:-1] + h1 * est[:-2]) / (h0 * h1 * (h0 + h1)), axis=-1)
+    want_acc = acc[np.isfinite(acc).all(axis=1)].mean()
+    want_d = np.linalg.norm(est - gt, axis=-1)
+    scored, truth = est.copy(), gt.copy()
+    scored[[7, 40], 4] = 0.0
+    truth[[3, 50, 51]] = np.nan  # frames not scored
+    monkeypatch.setattr(metrics, "FRAMES_CHUNK", 4096)
+    want_err = metrics.track_errors(scored, truth)
+    for chunk in (5, 16, 101, 4096):
+        monkeypatch.setattr(metrics, "FRAMES_CHUNK", chunk)
+        assert metrics.joint_acceleration(est, t) == pytest.approx(want_acc, rel=1e-12)
+        np.testing.assert_array_equal(metrics.joint_distances(est, gt), want_d)
+        err = metrics.track_errors(scored, truth)
+        np.testing.assert_allclose(err.d_per_frame, want_err.d_per_frame, rtol=1e-12)
+        for k, v in want_err.summary().items():
+            assert err.summary()[k] == pytest.approx(v, rel=1e-12), k

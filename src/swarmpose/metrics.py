@@ -21,9 +21,12 @@ from swarmpose.errors import ShapeError
 from swarmpose.joints import JOINTS15
 
 __all__ = ["TrackErrors", "joint_distances", "valid_frames", "track_errors", "aggregate_runs", "spread_over_runs",
-           "MMTA_DELTA_MM", "joint_acceleration"]
+           "MMTA_DELTA_MM", "joint_acceleration", "FRAMES_CHUNK"]
 
 MMTA_DELTA_MM = 100.0
+#: Frames per step of :func:`joint_distances` and :func:`joint_acceleration`: a long recording's whole track
+#: (20,000 frames) is measured without (T, 15, 3) temporaries.
+FRAMES_CHUNK = 1024
 
 
 def joint_distances(estimate: np.ndarray, truth: np.ndarray) -> np.ndarray:
@@ -32,7 +35,10 @@ def joint_distances(estimate: np.ndarray, truth: np.ndarray) -> np.ndarray:
     gt = np.asarray(truth, dtype=np.float64)
     if est.shape != gt.shape or est.ndim != 3 or est.shape[1:] != (15, 3):
         raise ShapeError(f"estimate and truth must both be (T, 15, 3); got {est.shape} and {gt.shape}")
-    return np.linalg.norm(est - gt, axis=-1)
+    out = np.empty(est.shape[:2])
+    for a in range(0, len(est), FRAMES_CHUNK):
+        out[a:a + FRAMES_CHUNK] = np.linalg.norm(est[a:a + FRAMES_CHUNK] - gt[a:a + FRAMES_CHUNK], axis=-1)
+    return out
 
 
 @dataclass(frozen=True)
@@ -58,17 +64,21 @@ class TrackErrors:
 def joint_acceleration(joints: np.ndarray, times: np.ndarray) -> float:
     """Jitter: the mean magnitude of the joints' acceleration, mm/s^2, by central second differences over
     ``joints (T, J, 3)`` at ``times (T,)`` s (uneven steps allowed); frames with a non-finite joint are left out;
-    NaN with fewer than 3 frames."""
+    NaN with fewer than 3 frames. Taken :data:`FRAMES_CHUNK` frames at a time."""
     x = np.asarray(joints, dtype=np.float64)
     t = np.asarray(times, dtype=np.float64)
     if len(x) < 3:
         return float("nan")
-    h0 = (t[1:-1] - t[:-2])[:, None, None]
-    h1 = (t[2:] - t[1:-1])[:, None, None]
-    a = 2.0 * (h0 * x[2:] - (h0 + h1) * x[1:-1] + h1 * x[:-2]) / (h0 * h1 * (h0 + h1))
-    n = np.linalg.norm(a, axis=-1)
-    n = n[np.isfinite(n).all(axis=1)]
-    return float(n.mean()) if n.size else float("nan")
+    total, count = 0.0, 0
+    for s in range(1, len(x) - 1, FRAMES_CHUNK):  # the centres s .. e - 1 of the second differences
+        e = min(s + FRAMES_CHUNK, len(x) - 1)
+        h0 = (t[s:e] - t[s - 1:e - 1])[:, None, None]
+        h1 = (t[s + 1:e + 1] - t[s:e])[:, None, None]
+        a = 2.0 * (h0 * x[s + 1:e + 1] - (h0 + h1) * x[s:e] + h1 * x[s - 1:e - 1]) / (h0 * h1 * (h0 + h1))
+        n = np.linalg.norm(a, axis=-1)
+        n = n[np.isfinite(n).all(axis=1)]
+        total, count = total + float(n.sum()), count + n.size
+    return total / count if count else float("nan")
 
 
 def valid_frames(truth: np.ndarray) -> np.ndarray:
@@ -93,31 +103,42 @@ def track_errors(estimate: np.ndarray, truth: np.ndarray, delta_mm: float = MMTA
     """
     if not (np.isfinite(delta_mm) and delta_mm > 0):
         raise ValueError(f"delta_mm must be a positive distance in mm, got {delta_mm!r}")
-    dist_all = joint_distances(estimate, truth)
-    ok = valid_frames(truth)
+    est, gt = np.asarray(estimate), np.asarray(truth)
+    if est.shape != gt.shape or est.ndim != 3 or est.shape[1:] != (15, 3):
+        raise ShapeError(f"estimate and truth must both be (T, 15, 3); got {est.shape} and {gt.shape}")
+    ok = valid_frames(gt)
     if not ok.any():
         raise ValueError(f"no frame to score: the ground truth of all {len(ok)} frames is missing or not finite")
-    dist = dist_all[ok]
-    if not np.isfinite(dist).all():
-        bad = np.flatnonzero(ok)[~np.isfinite(dist).all(axis=1)]
-        raise ValueError(f"the estimate is not finite at {len(bad)} scored frame(s), first at index {int(bad[0])}")
-    d = dist.mean(axis=1)
-    d_per_frame = np.full(len(ok), np.nan)
-    d_per_frame[ok] = d
-    matched = dist < delta_mm
-    share = matched.mean(axis=1)
-    n_match = matched.sum(axis=1)
-    mmtp_frame = np.where(n_match > 0, np.where(matched, dist, 0.0).sum(axis=1) / np.maximum(n_match, 1), delta_mm)
+    # per frame, FRAMES_CHUNK frames at a time: a long track is scored without (T, 15) temporaries
+    T = len(ok)
+    d_per_frame, share, mmtp_frame, sigma = np.full(T, np.nan), np.zeros(T), np.zeros(T), np.zeros(T)
+    joint_sum = np.zeros(15)
+    for a in range(0, T, FRAMES_CHUNK):
+        b = min(a + FRAMES_CHUNK, T)
+        rows = a + np.flatnonzero(ok[a:b])
+        dist = joint_distances(est[rows], gt[rows])
+        if not np.isfinite(dist).all():
+            bad = rows[~np.isfinite(dist).all(axis=1)]
+            raise ValueError(f"the estimate is not finite at {len(bad)} scored frame(s), first at index {int(bad[0])}")
+        d_per_frame[rows] = dist.mean(axis=1)
+        matched = dist < delta_mm
+        n_match = matched.sum(axis=1)
+        share[rows] = n_match / dist.shape[1]
+        mmtp_frame[rows] = np.where(n_match > 0, np.where(matched, dist, 0.0).sum(axis=1) / np.maximum(n_match, 1),
+                                    delta_mm)
+        sigma[rows] = dist.std(axis=1)
+        joint_sum += dist.sum(axis=0)
+    d = d_per_frame[ok]
     return TrackErrors(
         d_per_frame=d_per_frame,
         d_mean=float(d.mean()),
         d_max=float(d.max()),
         d_std=float(d.std()),
-        per_joint={n: float(v) for n, v in zip(JOINTS15, dist.mean(axis=0), strict=True)},
-        mmta=float(share.mean()),
-        mmtp=float(mmtp_frame.mean()),
+        per_joint={n: float(v) for n, v in zip(JOINTS15, joint_sum / int(ok.sum()), strict=True)},
+        mmta=float(share[ok].mean()),
+        mmtp=float(mmtp_frame[ok].mean()),
         mu=float(d.mean()),
-        sigma=float(dist.std(axis=1).mean()),
+        sigma=float(sigma[ok].mean()),
     )
 
 

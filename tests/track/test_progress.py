@@ -77,3 +77,27 @@ def test_damaged_or_foreign_files_are_named(tmp_path):
     store.state_file.write_bytes(b"not an archive")
     with pytest.raises(FormatError, match="progress.npz.*delete it"):
         RunProgress(tmp_path, 10, 3, 2).load()
+
+
+@pytest.mark.skipif(not __import__("os").path.exists("/proc/self/maps"), reason="reads /proc/self/maps (Linux)")
+def test_the_rows_file_is_not_kept_mapped(tmp_path):
+    """A long recording's rows are written in place, not through a mapping that would keep them in the
+    process's memory; a resumed run reads them and lets the mapping go."""
+    rng = np.random.default_rng(0)
+    store = RunProgress(tmp_path, 50, 3, 2)
+    store.start(None)
+    for i in range(3):
+        _save(store, i, rng)
+
+    def mapped() -> bool:
+        return str(store.frames_file) in open("/proc/self/maps").read()
+
+    assert not mapped()
+    again = RunProgress(tmp_path, 50, 3, 2)
+    state = again.load()
+    again.start(state)
+    _save(again, 3, rng)
+    assert not mapped()
+    again.close()
+    store.close()
+    assert RunProgress(tmp_path, 50, 3, 2).load().done == 4

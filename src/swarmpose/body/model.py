@@ -23,7 +23,7 @@ from swarmpose.errors import ConfigError, ShapeError
 __all__ = ["BodyModel", "ConeArrays", "PlacedCones", "load_model", "JOINTS_CHUNK"]
 
 #: Poses per step of :meth:`BodyModel.joints15` (the whole track of a long recording is taken in steps).
-JOINTS_CHUNK = 4096
+JOINTS_CHUNK = 1024
 
 
 @dataclass(frozen=True)

@@ -53,7 +53,9 @@ def main() -> None:
         from click.exceptions import BadParameter, ClickException, MissingParameter
 
     from swarmpose.cli.common import err_console, escape, print_json
+    from swarmpose.track.heap import fix_mmap_threshold
 
+    fix_mmap_threshold()  # large buffers off the C heap: a long run's memory stays flat (swarmpose.track.heap)
     args = sys.argv[1:]
     try:
         rv = command()(standalone_mode=False)

@@ -3,7 +3,9 @@
 Two files in the run's folder:
 
 * ``progress_frames.npy`` -- one row per frame of the run (a structured NumPy array: parameters, score,
-  evaluations, seconds, recovered limbs), memory-mapped: frame ``i`` writes its row and flushes it;
+  evaluations, seconds, recovered limbs): frame ``i`` writes its row in place (a positioned write, in the
+  system's file cache when ``save`` returns, so a crash of the process loses nothing; the file is not mapped,
+  so a long recording's rows do not stay in the process's memory);
 * ``progress.npz`` -- the small state the next frame needs (frames done, last estimate, the generator's
   state, the carried particle set), replaced atomically after the row is on disk.
 
@@ -61,7 +63,8 @@ class RunProgress:
         self.frames_file = self.run_dir / FRAMES_FILE
         self.dtype = _dtype(n_params, n_limbs)
         self.shape = (int(n_frames),)
-        self._frames: np.memmap | None = None
+        self._fd: int | None = None  # the frames file, open for writing rows
+        self._offset = 0  # where its rows start (after the .npy header)
 
     def exists(self) -> bool:
         return self.state_file.is_file()
@@ -94,7 +97,7 @@ class RunProgress:
                 if "recovered" in z:
                     rows["recovered"] = z["recovered"]
             else:
-                rows = self._open("r+")
+                rows = self._read_rows()
         except (ValueError, TypeError, KeyError, json.JSONDecodeError) as exc:
             raise FormatError(f"does not fit this run ({exc}); delete it to track run {self.run} afresh",
                               path=self.state_file) from None
@@ -103,45 +106,56 @@ class RunProgress:
                              seconds=r["seconds"], recovered=r["recovered"], x_prev=x_prev, rng_state=rng_state,
                              carry=carry)
 
-    def _open(self, mode: str) -> np.memmap:
-        if mode == "w+":
-            self._frames = np.lib.format.open_memmap(self.frames_file, mode="w+", dtype=self.dtype, shape=self.shape)
-            return self._frames
+    def _checked(self) -> np.memmap:
+        """The frames file, mapped for reading, after checking its row type and length."""
         try:
-            frames = np.lib.format.open_memmap(self.frames_file, mode=mode)
+            frames = np.lib.format.open_memmap(self.frames_file, mode="r")
         except (OSError, ValueError) as exc:
             raise ValueError(f"{self.frames_file.name} cannot be read: {exc}") from None
         if frames.dtype != self.dtype or frames.shape != self.shape:
             raise ValueError(f"{self.frames_file.name} holds {frames.shape} {frames.dtype}, expected {self.shape}")
-        self._frames = frames
         return frames
+
+    def _read_rows(self) -> np.ndarray:
+        frames = self._checked()
+        rows = np.array(frames)  # a copy: the mapping is let go
+        del frames
+        return rows
 
     def start(self, state: ProgressState | None) -> None:
         """Open the frames file for writing: a new one, or the loaded run's (rows of the earlier layout copied)."""
         if state is None or not self.frames_file.is_file():
-            self._open("w+")
+            frames = np.lib.format.open_memmap(self.frames_file, mode="w+", dtype=self.dtype, shape=self.shape)
         else:
-            self._open("r+")
+            frames = self._checked()
+        self._offset = int(frames.offset)
+        del frames
+        self._fd = os.open(self.frames_file, os.O_RDWR)
         if state is not None and state.done:
-            f = self._frames
-            f["params"][:state.done], f["score"][:state.done] = state.params, state.scores
-            f["evaluations"][:state.done], f["seconds"][:state.done] = state.evaluations, state.seconds
-            f["recovered"][:state.done] = state.recovered
-            f.flush()
+            rows = np.zeros(state.done, self.dtype)
+            rows["params"], rows["score"] = state.params, state.scores
+            rows["evaluations"], rows["seconds"] = state.evaluations, state.seconds
+            rows["recovered"] = state.recovered
+            self._write(0, rows)
+
+    def _write(self, i: int, rows: np.ndarray) -> None:
+        data = rows.tobytes()
+        if os.pwrite(self._fd, data, self._offset + i * self.dtype.itemsize) != len(data):
+            raise OSError(f"{self.frames_file}: row {i} not written whole (disk full?)")
 
     def save(self, i: int, *, params: np.ndarray, score: float, evaluations: int, seconds: float,
              recovered: np.ndarray, x_prev: np.ndarray, rng_state: dict[str, Any],
              carry: tuple[np.ndarray, np.ndarray] | None) -> None:
         """Frame ``i`` done: its row, then the state that counts it."""
-        f = self._frames
-        if f is None:
+        if self._fd is None:
             raise RuntimeError("RunProgress.start() first")
-        f[i] = (params, score, evaluations, seconds, recovered)
-        f.flush()
+        self._write(i, np.array([(params, score, evaluations, seconds, recovered)], self.dtype))
         extra = {} if carry is None else {"carry_x": carry[0], "carry_w": carry[1]}
         tmp = self.state_file.with_name(self.state_file.name + ".tmp.npz")
         np.savez(tmp, done=i + 1, x_prev=x_prev, rng_state=np.array(json.dumps(rng_state)), **extra)
         os.replace(tmp, self.state_file)
 
     def close(self) -> None:
-        self._frames = None
+        if self._fd is not None:
+            os.close(self._fd)
+            self._fd = None

@@ -109,7 +109,10 @@ _progress_queue: Any = None
 def _worker_init(threads: int, progress_queue: Any = None, parent_pid: int | None = None) -> None:
     import numba
 
+    from swarmpose.track.heap import fix_mmap_threshold
+
     global _progress_queue
+    fix_mmap_threshold()  # a long run's memory stays flat
     # Ctrl-C reaches the whole process group: the parent alone handles it (it stops the workers), so
     # that no worker dies half-way through a pool message and leaves the pool waiting forever
     signal.signal(signal.SIGINT, signal.SIG_IGN)

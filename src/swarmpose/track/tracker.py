@@ -42,7 +42,7 @@ from swarmpose.body.model import BodyModel
 from swarmpose.body.priors import HardPriors
 from swarmpose.body.spec import Subject, load_spec
 from swarmpose.errors import ConfigError, DataError, FormatError
-from swarmpose.io.files import load_npz, read_json_object
+from swarmpose.io.files import load_npz, read_json_object, save_npz
 from swarmpose.metrics import joint_acceleration, track_errors, valid_frames
 from swarmpose.track.feature_store import FeatureStore
 from swarmpose.track.motion import parse_motion
@@ -498,7 +498,7 @@ def prepare_track(sequence_path: str | Path, config: TrackConfig, out_dir: Path 
             if out_dir is not None:
                 out_dir.mkdir(parents=True, exist_ok=True)
                 subject.save(out_dir / "subject.json")
-                _atomic_savez(out_dir / "ik.npz", params=ik_params, joint_error_mm=ik_err, floor_params=floor_params,
+                save_npz(out_dir / "ik.npz", params=ik_params, joint_error_mm=ik_err, floor_params=floor_params,
                               frame_indices=frames, key=np.array(key))
         else:
             valid = valid_frames(gt)
@@ -513,7 +513,7 @@ def prepare_track(sequence_path: str | Path, config: TrackConfig, out_dir: Path 
             if out_dir is not None:
                 out_dir.mkdir(parents=True, exist_ok=True)
                 subject.save(out_dir / "subject.json")
-                _atomic_savez(out_dir / "ik.npz", params=ik_params, joint_error_mm=ik_err, floor_params=floor_params,
+                save_npz(out_dir / "ik.npz", params=ik_params, joint_error_mm=ik_err, floor_params=floor_params,
                               frame_indices=frames, key=np.array(key))
         return TrackSetup(sequence_path=Path(sequence_path), config=config, model=model, frame_indices=frames,
                           frame_times=times, gt_joints=gt, ik_params=ik_params, ik_error_mm=ik_err,
@@ -554,12 +554,6 @@ class RunResult:
     @property
     def frames_per_s(self) -> float:
         return float(len(self.seconds) / max(self.seconds.sum(), 1e-12))
-
-
-def _atomic_savez(path: Path, **arrays: Any) -> None:
-    tmp = path.with_name(path.name + ".tmp.npz")
-    np.savez(tmp, **arrays)
-    os.replace(tmp, path)
 
 
 def _make_fitness(setup: TrackSetup):
@@ -786,11 +780,11 @@ def run_tracker(
 def _write_run(run_dir: Path, setup: TrackSetup, result: RunResult, d_per_frame: np.ndarray) -> None:
     from swarmpose.io.jsonable import to_jsonable
 
-    _atomic_savez(run_dir / "track.npz", params=result.params, joints=result.joints, scores=result.scores,
+    save_npz(run_dir / "track.npz", params=result.params, joints=result.joints, scores=result.scores,
                   evaluations=result.evaluations, seconds=result.seconds, frame_indices=setup.frame_indices,
                   d_per_frame=d_per_frame, param_names=np.array(setup.model.param_names),
                   recovered=result.recovered, limbs=np.array(LIMB_NAMES), **(result.passes or {}))
-    _atomic_savez(run_dir / "joints.npz", joints=result.joints, gt_joints=setup.gt_joints,
+    save_npz(run_dir / "joints.npz", joints=result.joints, gt_joints=setup.gt_joints,
                   frame_times=setup.frame_times,
                   world_from_source=setup.world_from_source)
     (run_dir / "summary.json").write_text(json.dumps(to_jsonable({"run": result.run, **result.errors}),
