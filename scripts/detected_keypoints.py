@@ -9,8 +9,11 @@ tracker, which weighs keypoints wherever a sequence carries them) into ``WORK/<c
 against the ground truth; ``--without`` tracks it a second time with ``--fitness-options keypoints=0`` into
 ``WORK/<clip>-<algo>-keypoints0`` (the keypoint term off; the default's fit to the keypoints stays).
 
+``--fitness-options TEXT`` passes the track's fitness options on (e.g. ``keypoint_swaps=ends``) and names the
+results folder after them.
+
 Run:  .venv/bin/python scripts/detected_keypoints.py [--clips CLIP ...] [--fps 20] [--runs 3] [--algo A]
-      [--without] [--work results/detected-keypoints] [--json]
+      [--fitness-options TEXT] [--without] [--work results/detected-keypoints] [--json]
 Needs MediaPipe Pose (``make detect``).
 """
 
@@ -92,6 +95,7 @@ def main() -> None:
     ap.add_argument("--fps", type=float, default=20.0)
     ap.add_argument("--runs", type=int, default=3)
     ap.add_argument("--algo", default=DEFAULT_ALGO)
+    ap.add_argument("--fitness-options", default="", help="the track's --fitness-options (e.g. keypoint_swaps=ends)")
     ap.add_argument("--without", action="store_true", help="also track with keypoints=0 (the term off)")
     ap.add_argument("--work", type=Path, default=Path("results/detected-keypoints"))
     ap.add_argument("--json", action="store_true")
@@ -103,10 +107,13 @@ def main() -> None:
         hybrid, imp = with_keypoints(clip, args.work)
         row = {"clip": name, "swapped_view_frames": imp["swapped_view_frames"],
                "view_frames": imp["n_frames"] * len(imp["cameras"]), "found_rate": imp["found_rate"]}
-        for label, extra in (("with", []), ("without", ["--fitness-options", "keypoints=0"])):
+        own = [args.fitness_options] if args.fitness_options else []
+        for label, options in (("with", own), ("without", [*own, "keypoints=0"])):
             if label == "without" and not args.without:
                 continue
-            out = args.work / f"{name}-{args.algo}{'' if label == 'with' else '-keypoints0'}"
+            extra = ["--fitness-options", ",".join(options)] if options else []
+            tag = "".join(f"-{o.replace('=', '')}" for o in options).replace(",", "-").replace(":", "").replace("+", "")
+            out = args.work / f"{name}-{args.algo}{tag}"
             shutil.rmtree(out, ignore_errors=True)
             run([*CLI, "track", str(hybrid), "--algo", args.algo, "--fps", f"{args.fps:g}", "--runs", str(args.runs),
                  "--out", str(out), "--no-progress", "--json", *extra])
@@ -118,7 +125,8 @@ def main() -> None:
                   f"{r['d_max']:.1f} MMTA {100 * r['mmta']:.1f} %"
                   + (f"; keypoints=0: {row['without']['d_mean']:.1f}" if "without" in row else ""), flush=True)
     if args.json:
-        print(json.dumps({"algo": args.algo, "fps": args.fps, "runs": args.runs, "clips": rows}))
+        print(json.dumps({"algo": args.algo, "fps": args.fps, "runs": args.runs,
+                          "fitness_options": args.fitness_options, "clips": rows}))
     else:
         d = [r["with"]["d_mean"] for r in rows]
         print(f"mean over {len(d)} clips: {np.mean(d):.1f} mm")

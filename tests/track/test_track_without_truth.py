@@ -11,6 +11,7 @@ import pytest
 from swarmpose.errors import ConfigError
 from swarmpose.fitness.keypoints import (
     SWAP,
+    SWAPS,
     detector_elbows,
     joint_weights,
     keypoint_cost,
@@ -68,6 +69,38 @@ def test_keypoint_cost_matches_its_reference_and_is_robust():
     kp_near = reproject(cams, detector_elbows(truth, 0.9))
     assert keypoint_cost(truth[None], cams, kp_near, conf, elbow=0.9)[0] < 1e-12
     assert keypoint_cost(truth[None], cams, kp_near, conf)[0] > 1e-4
+
+
+def test_the_limbs_swaps_read_a_view_whose_legs_alone_are_swapped():
+    """``keypoint_swaps=limbs``: a view whose detector exchanged the legs only (not the arms) costs nothing at the
+    truth, as a whole-body swap does with ``body``; ``ends`` reads a view whose knees and ankles alone are exchanged;
+    the plain loops agree; the permutations are involutions."""
+    from swarmpose.camera import Camera
+
+    for perm in SWAPS["limbs"] + SWAPS["ends"]:
+        assert sorted(perm) == list(range(15)) and [perm[j] for j in perm] == list(range(15))
+    rng = np.random.default_rng(4)
+    cams = [Camera.look_at(f"c{i}", [3000 * np.cos(a), 3000 * np.sin(a), 1500], [0, 0, 1000])
+            for i, a in enumerate((0.2, 1.9, 3.5))]
+    truth = rng.normal(0, 300, (15, 3)) + [0, 0, 1000]
+    kp = reproject(cams, truth)
+    legs = np.array(SWAPS["limbs"][3])
+    kp[1] = kp[1][legs]  # view 1: the legs' labels exchanged, the arms' not
+    conf = rng.uniform(0.5, 1.0, (3, 15))
+    assert keypoint_cost(truth[None], cams, kp, conf, swaps="limbs")[0] < 1e-12
+    assert keypoint_cost(truth[None], cams, kp, conf)[0] > 0.01  # body: the whole body or nothing
+    assert keypoint_cost(truth[None], cams, kp, conf, swaps="ends")[0] > 0.01  # the hips too: not the ends alone
+    ends = reproject(cams, truth)
+    ends[2] = ends[2][np.array(SWAPS["ends"][3])]  # view 2: the knees' and ankles' labels exchanged
+    assert keypoint_cost(truth[None], cams, ends, conf, swaps="ends")[0] < 1e-12
+    poses = truth[None] + rng.normal(0, 40, (5, 15, 3))
+    for swaps in SWAPS:
+        assert np.allclose(keypoint_cost(poses, cams, kp, conf, swaps=swaps, elbow=0.9),
+                           keypoint_cost_reference(poses, cams, kp, conf, swaps=swaps, elbow=0.9), atol=1e-12)
+    from swarmpose.fitness.base import ImageOptions
+
+    with pytest.raises(ConfigError, match="keypoint_swaps must be one of body, limbs, ends"):
+        ImageOptions(keypoint_swaps="arms")
 
 
 def test_detector_elbows_move_along_the_upper_arm_only():

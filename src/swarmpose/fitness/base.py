@@ -9,14 +9,15 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from swarmpose.errors import ConfigError, ShapeError, option_items
-from swarmpose.fitness.keypoints import joint_weights
+from swarmpose.fitness.keypoints import SWAPS, joint_weights
 
 __all__ = ["Fitness", "ImageOptions", "parse_image_options", "TERMS", "silhouette_score", "edge_score",
            "deutscher_reid_log_weight", "check_scores", "parse_fitness_options"]
 
 #: Values of the ``"terms"`` option.
 TERMS = ("silhouette+edge", "silhouette", "edge", "distance")
-_OPTION_KEYS = ("edge_cones", "edge_top", "terms", "distance", "keypoints", "keypoint_joints", "keypoint_elbow")
+_OPTION_KEYS = ("edge_cones", "edge_top", "terms", "distance", "keypoints", "keypoint_joints", "keypoint_elbow",
+                "keypoint_swaps")
 
 
 @runtime_checkable
@@ -69,6 +70,10 @@ class ImageOptions:
     keypoint_elbow : float
         Where the detector's elbow is taken to lie on the model's upper arm, as a fraction of it from the
         shoulder (:func:`swarmpose.fitness.keypoints.detector_elbows`; 1: at the model's elbow).
+    keypoint_swaps : {"body", "limbs", "ends"}
+        Which left/right exchanges of a view's labels the keypoint term tries
+        (:data:`swarmpose.fitness.keypoints.SWAPS`): the whole body's; also the arms' and the legs' apart; or also
+        the elbows with the wrists and the knees with the ankles apart.
     """
 
     edge_cones: str | tuple[str, ...] = "all"
@@ -78,6 +83,7 @@ class ImageOptions:
     keypoints: float = 0.0
     keypoint_joints: str = ""
     keypoint_elbow: float = 1.0
+    keypoint_swaps: str = "body"
 
     def __post_init__(self) -> None:
         if self.terms not in TERMS:
@@ -103,6 +109,8 @@ class ImageOptions:
             raise ConfigError(f"keypoint_elbow must be a fraction of the upper arm in (0, 1] (or auto, which a track "
                               f"measures on its sequence), got {self.keypoint_elbow!r}")
         object.__setattr__(self, "keypoint_elbow", f)
+        if self.keypoint_swaps not in SWAPS:
+            raise ConfigError(f"keypoint_swaps must be one of {', '.join(SWAPS)}, got {self.keypoint_swaps!r}")
         object.__setattr__(self, "keypoint_joints", str(self.keypoint_joints))
         joint_weights(self.keypoint_joints)  # checks the text: a ConfigError names what is wrong
 
@@ -126,7 +134,8 @@ def parse_image_options(options: Mapping[str, Any] | None, default: ImageOptions
                         distance=options.get("distance", default.distance),
                         keypoints=options.get("keypoints", default.keypoints),
                         keypoint_joints=options.get("keypoint_joints", default.keypoint_joints),
-                        keypoint_elbow=options.get("keypoint_elbow", default.keypoint_elbow))
+                        keypoint_elbow=options.get("keypoint_elbow", default.keypoint_elbow),
+                        keypoint_swaps=options.get("keypoint_swaps", default.keypoint_swaps))
 
 
 def silhouette_score(Y: np.ndarray, P: np.ndarray, O: np.ndarray, a: float = 0.5) -> np.ndarray:

@@ -10,7 +10,8 @@ over the views ``c`` that have confident keypoints (``w_cj`` = confidence times 
 0 below :data:`MIN_CONFIDENCE`; ``a_j = 1`` unless the ``keypoint_joints`` option says otherwise; the model's
 elbows ``J_j`` taken where the ``keypoint_elbow`` option puts the detector's, :func:`detector_elbows`).
 ``rho`` is bounded, so a misdetected joint costs at most 1 and cannot drag the pose; ``min_labels`` takes,
-per view, the better of the labels as detected and left and right exchanged, so a view whose detector
+per view, the best of the labels as detected and left and right exchanged (the whole body's; with the
+``keypoint_swaps=limbs`` option also the arms' alone and the legs' alone: :data:`SWAPS`), so a view whose detector
 swapped the sides still helps. ``s`` is :data:`SCALE` of the image diagonal.
 ``K`` lies in ``[-1, 0]``.
 
@@ -30,12 +31,30 @@ from swarmpose.detection.joints import MIN_CONFIDENCE
 from swarmpose.errors import ConfigError
 from swarmpose.joints import JOINT_INDEX, JOINTS15, SWAP15
 
-__all__ = ["keypoint_cost", "keypoint_cost_reference", "joint_weights", "detector_elbows", "SCALE", "SWAP"]
+__all__ = ["keypoint_cost", "keypoint_cost_reference", "joint_weights", "detector_elbows", "SCALE", "SWAP", "SWAPS"]
 
 #: Robust scale of the residual, as a fraction of the image diagonal (about 22 px at 544 x 960).
 SCALE = 0.02
 #: The permutation of the 15 joints that exchanges left and right.
 SWAP = np.array(SWAP15)
+
+
+def _swap_of(parts: tuple[str, ...]) -> tuple[int, ...]:
+    """The permutation that exchanges left and right of the joints named ``l_/r_`` + one of ``parts`` only."""
+    return tuple(int(SWAP[j]) if name[2:] in parts else j for j, name in enumerate(JOINTS15))
+
+
+#: The labellings the keypoint term tries per view (permutations of the 15 joints), by ``keypoint_swaps``:
+#: ``body``: as detected and the whole body's left and right exchanged; ``limbs``: also the arms' alone
+#: (shoulders, elbows, wrists) and the legs' alone (hips, knees, ankles); ``ends``: also the elbows and wrists
+#: alone and the knees and ankles alone (the shoulders and hips, which say where the body faces, only with the
+#: whole body). MediaPipe on the synthetic clips' faceless renders now and then labels one view's arms and legs
+#: differently; docs/results.md measures what each set does to the tracking.
+SWAPS = {"body": (tuple(range(len(JOINTS15))), tuple(int(j) for j in SWAP)),
+         "limbs": (tuple(range(len(JOINTS15))), tuple(int(j) for j in SWAP),
+                   _swap_of(("shoulder", "elbow", "wrist")), _swap_of(("hip", "knee", "ankle"))),
+         "ends": (tuple(range(len(JOINTS15))), tuple(int(j) for j in SWAP),
+                  _swap_of(("elbow", "wrist")), _swap_of(("knee", "ankle")))}
 
 
 @lru_cache(maxsize=32)  # read once per text, not on every evaluation of the fitness
@@ -88,7 +107,7 @@ def detector_elbows(joints: np.ndarray, fraction: float) -> np.ndarray:
 
 def keypoint_cost(joints: np.ndarray, cameras: Sequence[Camera], keypoints: np.ndarray,
                   confidence: np.ndarray, scale_px: float | None = None,
-                  weights: Sequence[float] | None = None, elbow: float = 1.0) -> np.ndarray:
+                  weights: Sequence[float] | None = None, elbow: float = 1.0, swaps: str = "body") -> np.ndarray:
     """``-K``: the robust keypoint cost ``(N,)`` in ``[0, 1]`` of model joints ``(N, 15, 3)`` (mm).
 
     Parameters
@@ -102,8 +121,11 @@ def keypoint_cost(joints: np.ndarray, cameras: Sequence[Camera], keypoints: np.n
         The joints' weights ``a_j`` (:func:`joint_weights`); default all 1.
     elbow : float
         Where the detector's elbow is taken to lie on the model's upper arm (:func:`detector_elbows`).
+    swaps : {"body", "limbs"}
+        The labellings tried per view (:data:`SWAPS`).
     """
     J = detector_elbows(np.asarray(joints, dtype=np.float64), elbow)
+    perms = [np.array(p) for p in SWAPS[swaps]]
     s = SCALE * float(np.hypot(cameras[0].width, cameras[0].height)) if scale_px is None else float(scale_px)
     a = None if weights is None else np.asarray(weights, dtype=np.float64)
     total = np.zeros(J.shape[0])
@@ -112,7 +134,7 @@ def keypoint_cost(joints: np.ndarray, cameras: Sequence[Camera], keypoints: np.n
         kp = np.asarray(keypoints[c], dtype=np.float64)
         w = _weights(np.asarray(confidence[c], dtype=np.float64), kp)
         # per labelling, model joint j's weight a_j times its detection's confidence
-        labellings = [(perm, w[perm] if a is None else w[perm] * a) for perm in (slice(None), SWAP)]
+        labellings = [(perm, w[perm] if a is None else w[perm] * a) for perm in perms]
         if all(ww.sum() <= 0 for _, ww in labellings):
             continue
         uv, z = cam.project_with_depth(J)  # (N, 15, 2)
@@ -126,7 +148,7 @@ def keypoint_cost(joints: np.ndarray, cameras: Sequence[Camera], keypoints: np.n
             e2 = ((uv - k[perm]) ** 2).sum(axis=-1)  # (N, 15)
             rho = e2 / (e2 + s * s)
             costs.append(np.nansum(rho * ww, axis=1) / ww.sum())
-        view = np.minimum(costs[0], costs[1])
+        view = np.min(costs, axis=0)
         total += np.where(behind | ~np.isfinite(view), 1.0, view)
         views += 1
     return total / views if views else total
@@ -134,7 +156,8 @@ def keypoint_cost(joints: np.ndarray, cameras: Sequence[Camera], keypoints: np.n
 
 def keypoint_cost_reference(joints: np.ndarray, cameras: Sequence[Camera], keypoints: np.ndarray,
                             confidence: np.ndarray, scale_px: float | None = None,
-                            weights: Sequence[float] | None = None, elbow: float = 1.0) -> np.ndarray:
+                            weights: Sequence[float] | None = None, elbow: float = 1.0,
+                            swaps: str = "body") -> np.ndarray:
     """:func:`keypoint_cost` written as plain loops over poses, views, labellings and joints."""
     J = np.array(joints, dtype=np.float64)
     for n in range(len(J)):
@@ -150,7 +173,7 @@ def keypoint_cost_reference(joints: np.ndarray, cameras: Sequence[Camera], keypo
             conf = [float(confidence[c][j]) if np.isfinite(keypoints[c][j]).all()
                     and confidence[c][j] >= MIN_CONFIDENCE else 0.0 for j in range(len(JOINTS15))]
             labellings = []
-            for perm in (list(range(len(JOINTS15))), list(SWAP)):
+            for perm in SWAPS[swaps]:
                 wl = [conf[perm[j]] * a[j] for j in range(len(JOINTS15))]  # model joint j, detection perm[j]
                 if sum(wl) > 0:
                     labellings.append((perm, wl))
