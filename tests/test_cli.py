@@ -584,6 +584,22 @@ def test_bench_track_reports_every_part(short_sequence_cli: Path):
     timed = sum(p["seconds"] for p in data["parts"] if p["part"] != "writing")
     assert timed <= data["seconds"] * 1.01  # exclusive times: no part is counted twice
     assert data["peak_rss_mb"] > 0
+    import sys
+
+    if sys.platform.startswith("linux"):  # memory sampled along the run, the last sample at the last frame
+        assert [m["frame"] for m in data["memory"]] == [1, 2]
+        assert all(0 < m["anon_mb"] < m["rss_mb"] <= data["peak_rss_mb"] + 1 for m in data["memory"])
+    assert data["rss_growth_kb_per_frame"] is None  # too few samples for a slope
+
+
+def test_memory_growth_fits_the_run_after_its_first_quarter():
+    from swarmpose.track.bench import memory_growth
+
+    samples = [{"frame": f, "rss_mb": 300.0 + (50.0 if f < 250 else f / 1024.0)} for f in range(100, 1001, 100)]
+    assert memory_growth(samples) == pytest.approx(1.0)  # 1 KB a frame; the first quarter's jump left out
+    flat = [{"frame": f, "rss_mb": 250.0} for f in range(10, 101, 10)]
+    assert memory_growth(flat) == pytest.approx(0.0, abs=1e-9)
+    assert memory_growth([]) is None and memory_growth(flat, "anon_mb") is None
 
 
 @pytest.fixture(scope="module")

@@ -133,7 +133,8 @@ def track(
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object instead of a table."),
 ) -> None:
     """Track one run in this process and show where its time goes, part by part of the frame loop
-    (features, motion model, optimiser, fitness, hard priors, recovery, results writing)."""
+    (features, motion model, optimiser, fitness, hard priors, recovery, results writing), and its memory: the
+    peak, and how fast it grows after the first quarter of the run (`--json`: samples along the run)."""
     from swarmpose.cli.demo import DEFAULT_CLIP
     from swarmpose.track.bench import bench_track
     from swarmpose.track.runner import resolve_sequence
@@ -163,8 +164,11 @@ def track(
     console.print("features: every frame computed (--feature-cache off)" if store is None else
                   f"features: {store['read']} frames read from the feature store, {store['computed']} computed "
                   f"({escape(store['folder'])})", highlight=False)
-    console.print(f"peak memory {res['peak_rss_mb']:.0f} MB; D_mean {res['d_mean_mm']:.1f} mm"
-                  if res["d_mean_mm"] is not None else f"peak memory {res['peak_rss_mb']:.0f} MB", highlight=False)
+    growth = res["rss_growth_kb_per_frame"]
+    memory = f"peak memory {res['peak_rss_mb']:.0f} MB" + ("" if growth is None else
+                                                           f", growing {growth:.2f} KB per frame after the first quarter")
+    console.print(f"{memory}; D_mean {res['d_mean_mm']:.1f} mm" if res["d_mean_mm"] is not None else memory,
+                  highlight=False)
 
 
 from swarmpose.cli import bench_detect  # noqa: E402,F401 - registers `bench detect` on bench_app

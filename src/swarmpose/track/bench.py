@@ -37,6 +37,40 @@ def _peak_rss_mb() -> float:
     return kb / 1024.0 if sys.platform != "darwin" else kb / 2**20
 
 
+#: How many memory samples :func:`bench_track` takes along a run (at most).
+MEMORY_SAMPLES = 40
+_STATUS_FIELDS = {"VmRSS": "rss_mb", "RssAnon": "anon_mb", "RssFile": "file_mb"}
+
+
+def memory_now() -> dict[str, float]:
+    """The process's resident memory, MB: ``rss_mb`` and, where the kernel says, ``anon_mb`` (heap and other
+    private memory) and ``file_mb`` (mapped files and libraries), from ``/proc/self/status``; {} elsewhere."""
+    out: dict[str, float] = {}
+    try:
+        with open("/proc/self/status", encoding="ascii") as fh:
+            for line in fh:
+                key, _, value = line.partition(":")
+                if key in _STATUS_FIELDS:
+                    out[_STATUS_FIELDS[key]] = int(value.split()[0]) / 1024.0  # kB
+    except (OSError, ValueError):
+        return {}
+    return out
+
+
+def memory_growth(samples: list[dict[str, Any]], key: str = "rss_mb") -> float | None:
+    """KB per frame that ``key`` grew by over the last three quarters of the run (a line fitted to the samples
+    from the first quarter's end on: setting up and the first frames' caches are left out); None with fewer
+    than 3 such samples."""
+    if not samples:
+        return None
+    last = samples[-1]["frame"]
+    pts = [(s["frame"], s[key]) for s in samples if key in s and s["frame"] >= last / 4]
+    if len(pts) < 3:
+        return None
+    f, m = np.array(pts, dtype=float).T
+    return float(np.polyfit(f, m, 1)[0] * 1024.0)
+
+
 def repeated(setup: TrackSetup, times: int) -> TrackSetup:
     """The tracked frames played ``times`` times in a row, every other pass backwards (a long recording from
     a short clip with no jump between the passes: the motion reverses, the clock runs on at the tracking
@@ -62,14 +96,23 @@ def bench_track(sequence: str | Path, config: TrackConfig, *, run: int = 0, repe
 
     ``repeat``: play the tracked frames that many times, forwards and backwards (:func:`repeated`).
     Returns ``{"frames", "seconds", "frames_per_s", "parts": [{"part", "seconds", "ms_per_frame", "share"}],
-    "d_mean_mm", "evals_per_frame", "peak_rss_mb", ...}``; the first frame's kernel compilation is not counted
-    (as in ``track``).
+    "d_mean_mm", "evals_per_frame", "peak_rss_mb", "memory", ...}``; the first frame's kernel compilation is not
+    counted (as in ``track``). ``memory``: up to :data:`MEMORY_SAMPLES` samples of :func:`memory_now` along the run
+    (``frame``: frames done), and ``rss_growth_kb_per_frame`` / ``anon_growth_kb_per_frame``
+    (:func:`memory_growth`): a long run whose memory is flat grows by about 0.
     """
     t0 = time.perf_counter()
+    samples: list[dict[str, Any]] = []
     with tempfile.TemporaryDirectory(prefix="swarmpose-bench-") as tmp:
         setup = repeated(prepare_track(sequence, config, Path(tmp)), repeat)
         t_setup = time.perf_counter() - t0
-        result = run_tracker(setup, run, Path(tmp), feature_cache=feature_cache)
+        every = max(1, len(setup.frame_indices) // MEMORY_SAMPLES)
+
+        def sample(done: int, total: int) -> None:
+            if done % every == 0 or done == total:
+                samples.append({"frame": int(done), **memory_now()})
+
+        result = run_tracker(setup, run, Path(tmp), feature_cache=feature_cache, progress=sample)
     # the time per frame along the run: a cost that grows with the recording shows as a rising last quarter
     quarter = max(1, len(result.seconds) // 4)
     first_q = float(result.seconds[:quarter].mean()) if len(result.seconds) else 0.0
@@ -102,4 +145,7 @@ def bench_track(sequence: str | Path, config: TrackConfig, *, run: int = 0, repe
         "setup_s": t_setup,
         "feature_store": result.feature_store,  # frames whose features were read from the store, and computed
         "peak_rss_mb": _peak_rss_mb(),
+        "memory": samples,
+        "rss_growth_kb_per_frame": memory_growth(samples, "rss_mb"),
+        "anon_growth_kb_per_frame": memory_growth(samples, "anon_mb"),
     }
