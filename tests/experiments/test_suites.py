@@ -204,3 +204,9 @@ def test_the_keypoint_joints_option_is_read_and_a_bad_one_refused():
     for bad in ("0", "1.5", "near", "on"):
         with pytest.raises(ConfigError, match="keypoint_elbow must be a fraction"):
             parse_image_options(parse_fitness_options(f"keypoint_elbow={bad}"), ImageOptions())
+    opts = parse_image_options(parse_fitness_options("keypoint_scale=0.01,keypoint_swaps=ends"), ImageOptions())
+    assert opts.keypoint_scale == 0.01 and opts.keypoint_swaps == "ends"
+    assert ImageOptions().keypoint_scale == 0.02  # the term's SCALE
+    for bad in ("0", "1.5", "wide", "on"):
+        with pytest.raises(ConfigError, match="keypoint_scale must be a fraction"):
+            parse_image_options(parse_fitness_options(f"keypoint_scale={bad}"), ImageOptions())

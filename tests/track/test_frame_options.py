@@ -72,6 +72,15 @@ def test_the_default_weighs_keypoints_where_the_sequence_has_them(short_sequence
                                   _track(keypoint_sequence, "refined-limbs", "turn=on+keypoint_ik=on", "keypoints=0"))
 
 
+def test_the_keypoint_terms_scale_and_swaps_reach_the_searches(keypoint_sequence: Path):
+    """``keypoint_scale`` at the term's own SCALE and ``keypoint_swaps=body`` track pose for pose as without them;
+    another scale changes the track."""
+    default = _track(keypoint_sequence, "refined-heading")
+    np.testing.assert_array_equal(default, _track(keypoint_sequence, "refined-heading",
+                                                  options="keypoint_scale=0.02,keypoint_swaps=body"))
+    assert not np.array_equal(default, _track(keypoint_sequence, "refined-heading", options="keypoint_scale=0.005"))
+
+
 def test_the_keypoint_ik_variant():
     from swarmpose.body.model import load_model
     from swarmpose.errors import ConfigError

@@ -9,6 +9,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from swarmpose.errors import ConfigError, ShapeError, option_items
+from swarmpose.fitness.keypoints import SCALE as KEYPOINT_SCALE
 from swarmpose.fitness.keypoints import SWAPS, joint_weights
 
 __all__ = ["Fitness", "ImageOptions", "parse_image_options", "TERMS", "silhouette_score", "edge_score",
@@ -17,7 +18,7 @@ __all__ = ["Fitness", "ImageOptions", "parse_image_options", "TERMS", "silhouett
 #: Values of the ``"terms"`` option.
 TERMS = ("silhouette+edge", "silhouette", "edge", "distance")
 _OPTION_KEYS = ("edge_cones", "edge_top", "terms", "distance", "keypoints", "keypoint_joints", "keypoint_elbow",
-                "keypoint_swaps")
+                "keypoint_swaps", "keypoint_scale")
 
 
 @runtime_checkable
@@ -74,6 +75,9 @@ class ImageOptions:
         Which left/right exchanges of a view's labels the keypoint term tries
         (:data:`swarmpose.fitness.keypoints.SWAPS`): the whole body's; also the arms' and the legs' apart; or also
         the elbows with the wrists and the knees with the ankles apart.
+    keypoint_scale : float
+        The keypoint term's robust scale ``s`` as a fraction of the image diagonal
+        (:data:`swarmpose.fitness.keypoints.SCALE`, 0.02): a detection farther off than ``s`` costs nearly the most.
     """
 
     edge_cones: str | tuple[str, ...] = "all"
@@ -84,6 +88,7 @@ class ImageOptions:
     keypoint_joints: str = ""
     keypoint_elbow: float = 1.0
     keypoint_swaps: str = "body"
+    keypoint_scale: float = KEYPOINT_SCALE
 
     def __post_init__(self) -> None:
         if self.terms not in TERMS:
@@ -109,6 +114,14 @@ class ImageOptions:
             raise ConfigError(f"keypoint_elbow must be a fraction of the upper arm in (0, 1] (or auto, which a track "
                               f"measures on its sequence), got {self.keypoint_elbow!r}")
         object.__setattr__(self, "keypoint_elbow", f)
+        try:
+            k = float(self.keypoint_scale)
+        except (TypeError, ValueError):
+            k = float("nan")
+        if isinstance(self.keypoint_scale, bool) or not (np.isfinite(k) and 0 < k <= 1):
+            raise ConfigError(f"keypoint_scale must be a fraction of the image diagonal in (0, 1], got "
+                              f"{self.keypoint_scale!r}")
+        object.__setattr__(self, "keypoint_scale", k)
         if self.keypoint_swaps not in SWAPS:
             raise ConfigError(f"keypoint_swaps must be one of {', '.join(SWAPS)}, got {self.keypoint_swaps!r}")
         object.__setattr__(self, "keypoint_joints", str(self.keypoint_joints))
@@ -135,7 +148,8 @@ def parse_image_options(options: Mapping[str, Any] | None, default: ImageOptions
                         keypoints=options.get("keypoints", default.keypoints),
                         keypoint_joints=options.get("keypoint_joints", default.keypoint_joints),
                         keypoint_elbow=options.get("keypoint_elbow", default.keypoint_elbow),
-                        keypoint_swaps=options.get("keypoint_swaps", default.keypoint_swaps))
+                        keypoint_swaps=options.get("keypoint_swaps", default.keypoint_swaps),
+                        keypoint_scale=options.get("keypoint_scale", default.keypoint_scale))
 
 
 def silhouette_score(Y: np.ndarray, P: np.ndarray, O: np.ndarray, a: float = 0.5) -> np.ndarray:

@@ -140,7 +140,7 @@ class ImageFitness:
         poses : (N, D) array_like
         options : mapping, optional
             Per-stage overrides of ``edge_cones``, ``edge_top``, ``terms``, ``distance``, ``keypoints``,
-            ``keypoint_joints``, ``keypoint_elbow``, ``keypoint_swaps``.
+            ``keypoint_joints``, ``keypoint_elbow``, ``keypoint_swaps``, ``keypoint_scale``.
 
         Raises
         ------
@@ -170,7 +170,9 @@ class ImageFitness:
             a = joint_weights(opts.keypoint_joints) if opts.keypoint_joints else None
             scores -= opts.keypoints * keypoint_cost(self.model.joints15(p), prepared.cameras, f.keypoints,
                                                      f.keypoint_confidence, weights=a, elbow=opts.keypoint_elbow,
-                                                     swaps=opts.keypoint_swaps)
+                                                     swaps=opts.keypoint_swaps,
+                                                     scale_px=opts.keypoint_scale * float(np.hypot(
+                                                         prepared.cameras[0].width, prepared.cameras[0].height)))
         if bad is not None:
             scores[bad] = np.nan  # the optimisers' "invalid" (shared/design.md; optim.base score rule)
         return scores
