@@ -55,7 +55,7 @@ def main() -> None:
     from swarmpose.cli.common import err_console, escape, print_json
     from swarmpose.track.heap import fix_mmap_threshold
 
-    fix_mmap_threshold()  # large buffers off the C heap: a long run's memory stays flat (swarmpose.track.heap)
+    fix_mmap_threshold()  # large buffers off the C heap: a long run's heap grows less (swarmpose.track.heap)
     args = sys.argv[1:]
     try:
         rv = command()(standalone_mode=False)

@@ -1,12 +1,13 @@
-"""The C heap of a tracking process: large buffers taken straight from the system, so that a long run's memory
-stays flat.
+"""The C heap of a tracking process: large buffers taken straight from the system, so that a long run's heap does
+not keep what the frames' buffers leave behind.
 
 glibc's ``malloc`` raises its mmap threshold every time a block above it is freed (its dynamic threshold, up to
 32 MiB). From then on the per-frame buffers between 128 KiB and that size come from the heap, where the freed
-pieces do not always fit the next frames' buffers: over a 20,000-frame SPPSO run the process grew by about
-0.33 KB per frame (9 MB; measured with ``/proc/self/status`` every 250 frames), and by 0.23 KB per frame with the
-threshold fixed at 1 MiB. Fixed at glibc's own starting value, 128 KiB, it stays flat, and the resident memory of
-an 85-frame run is 6 MB lower; the features then cost about 1 ms more per frame (fresh mappings are paged in).
+pieces do not always fit the next frames' buffers: over 3,000 frames of SPPSO the heap grew by about 0.33 KB
+per frame (measured with ``/proc/self/status`` every 250 frames), by 0.23 KB per frame with the threshold fixed
+at 1 MiB, and not over the first 1,000 frames with it fixed at glibc's own starting value, 128 KiB, which also
+lowers an 85-frame run's resident memory by 6 MB; the features then cost about 1 ms more per frame (fresh
+mappings are paged in). A 20,000-frame run still grows by about 0.25 KB per frame (``bench track``).
 
 :func:`fix_mmap_threshold` sets it (``mallopt(M_MMAP_THRESHOLD)``, which also turns the dynamic threshold off). The
 command line calls it at start and in every worker process; a program that calls the library itself may call it

@@ -112,7 +112,7 @@ def _worker_init(threads: int, progress_queue: Any = None, parent_pid: int | Non
     from swarmpose.track.heap import fix_mmap_threshold
 
     global _progress_queue
-    fix_mmap_threshold()  # a long run's memory stays flat
+    fix_mmap_threshold()  # a long run's heap grows less (swarmpose.track.heap)
     # Ctrl-C reaches the whole process group: the parent alone handles it (it stops the workers), so
     # that no worker dies half-way through a pool message and leaves the pool waiting forever
     signal.signal(signal.SIGINT, signal.SIG_IGN)
