@@ -106,22 +106,16 @@ class ImageOptions:
             if isinstance(value, bool) or not (np.isfinite(w) and w >= 0):
                 raise ConfigError(f"{name} must be a weight >= 0, got {value!r}")
             object.__setattr__(self, name, w)
-        try:
-            f = float(self.keypoint_elbow)
-        except (TypeError, ValueError):
-            f = float("nan")
-        if isinstance(self.keypoint_elbow, bool) or not 0 < f <= 1:
-            raise ConfigError(f"keypoint_elbow must be a fraction of the upper arm in (0, 1] (or auto, which a track "
-                              f"measures on its sequence), got {self.keypoint_elbow!r}")
-        object.__setattr__(self, "keypoint_elbow", f)
-        try:
-            k = float(self.keypoint_scale)
-        except (TypeError, ValueError):
-            k = float("nan")
-        if isinstance(self.keypoint_scale, bool) or not (np.isfinite(k) and 0 < k <= 1):
-            raise ConfigError(f"keypoint_scale must be a fraction of the image diagonal in (0, 1], got "
-                              f"{self.keypoint_scale!r}")
-        object.__setattr__(self, "keypoint_scale", k)
+        for name, of in (("keypoint_elbow", "of the upper arm in (0, 1] (or auto, which a track measures on its "
+                                            "sequence)"), ("keypoint_scale", "of the image diagonal in (0, 1]")):
+            value = getattr(self, name)
+            try:
+                f = float(value)
+            except (TypeError, ValueError):
+                f = float("nan")
+            if isinstance(value, bool) or not 0 < f <= 1:
+                raise ConfigError(f"{name} must be a fraction {of}, got {value!r}")
+            object.__setattr__(self, name, f)
         if self.keypoint_swaps not in SWAPS:
             raise ConfigError(f"keypoint_swaps must be one of {', '.join(SWAPS)}, got {self.keypoint_swaps!r}")
         object.__setattr__(self, "keypoint_joints", str(self.keypoint_joints))

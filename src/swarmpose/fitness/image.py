@@ -170,9 +170,7 @@ class ImageFitness:
             a = joint_weights(opts.keypoint_joints) if opts.keypoint_joints else None
             scores -= opts.keypoints * keypoint_cost(self.model.joints15(p), prepared.cameras, f.keypoints,
                                                      f.keypoint_confidence, weights=a, elbow=opts.keypoint_elbow,
-                                                     swaps=opts.keypoint_swaps,
-                                                     scale_px=opts.keypoint_scale * float(np.hypot(
-                                                         prepared.cameras[0].width, prepared.cameras[0].height)))
+                                                     swaps=opts.keypoint_swaps, scale=opts.keypoint_scale)
         if bad is not None:
             scores[bad] = np.nan  # the optimisers' "invalid" (shared/design.md; optim.base score rule)
         return scores

@@ -11,8 +11,8 @@ over the views ``c`` that have confident keypoints (``w_cj`` = confidence times 
 elbows ``J_j`` taken where the ``keypoint_elbow`` option puts the detector's, :func:`detector_elbows`).
 ``rho`` is bounded, so a misdetected joint costs at most 1 and cannot drag the pose; ``min_labels`` takes,
 per view, the best of the labels as detected and left and right exchanged (the whole body's; with the
-``keypoint_swaps=limbs`` option also the arms' alone and the legs' alone: :data:`SWAPS`), so a view whose detector
-swapped the sides still helps. ``s`` is :data:`SCALE` of the image diagonal.
+``keypoint_swaps`` option also parts of it alone: :data:`SWAPS`), so a view whose detector swapped the sides
+still helps. ``s`` is :data:`SCALE` of the image diagonal unless the ``keypoint_scale`` option says otherwise.
 ``K`` lies in ``[-1, 0]``.
 
 :func:`keypoint_cost` is batched over poses; :func:`keypoint_cost_reference` is the plain loop it is
@@ -55,6 +55,7 @@ SWAPS = {"body": (tuple(range(len(JOINTS15))), tuple(int(j) for j in SWAP)),
                    _swap_of(("shoulder", "elbow", "wrist")), _swap_of(("hip", "knee", "ankle"))),
          "ends": (tuple(range(len(JOINTS15))), tuple(int(j) for j in SWAP),
                   _swap_of(("elbow", "wrist")), _swap_of(("knee", "ankle")))}
+_SWAP_INDEX = {name: [np.array(p) for p in perms] for name, perms in SWAPS.items()}  # for the batched cost
 
 
 @lru_cache(maxsize=32)  # read once per text, not on every evaluation of the fitness
@@ -106,7 +107,7 @@ def detector_elbows(joints: np.ndarray, fraction: float) -> np.ndarray:
 
 
 def keypoint_cost(joints: np.ndarray, cameras: Sequence[Camera], keypoints: np.ndarray,
-                  confidence: np.ndarray, scale_px: float | None = None,
+                  confidence: np.ndarray, scale: float = SCALE,
                   weights: Sequence[float] | None = None, elbow: float = 1.0, swaps: str = "body") -> np.ndarray:
     """``-K``: the robust keypoint cost ``(N,)`` in ``[0, 1]`` of model joints ``(N, 15, 3)`` (mm).
 
@@ -115,18 +116,18 @@ def keypoint_cost(joints: np.ndarray, cameras: Sequence[Camera], keypoints: np.n
     joints : (N, 15, 3)
     cameras : C cameras
     keypoints : (C, 15, 2) px, NaN where absent; confidence : (C, 15)
-    scale_px : float, optional
-        ``s``; default :data:`SCALE` of the first camera's image diagonal.
+    scale : float
+        ``s`` as a fraction of the first camera's image diagonal (default :data:`SCALE`).
     weights : (15,) float, optional
         The joints' weights ``a_j`` (:func:`joint_weights`); default all 1.
     elbow : float
         Where the detector's elbow is taken to lie on the model's upper arm (:func:`detector_elbows`).
-    swaps : {"body", "limbs"}
+    swaps : {"body", "limbs", "ends"}
         The labellings tried per view (:data:`SWAPS`).
     """
     J = detector_elbows(np.asarray(joints, dtype=np.float64), elbow)
-    perms = [np.array(p) for p in SWAPS[swaps]]
-    s = SCALE * float(np.hypot(cameras[0].width, cameras[0].height)) if scale_px is None else float(scale_px)
+    perms = _SWAP_INDEX[swaps]
+    s = float(scale) * float(np.hypot(cameras[0].width, cameras[0].height))
     a = None if weights is None else np.asarray(weights, dtype=np.float64)
     total = np.zeros(J.shape[0])
     views = 0
@@ -155,7 +156,7 @@ def keypoint_cost(joints: np.ndarray, cameras: Sequence[Camera], keypoints: np.n
 
 
 def keypoint_cost_reference(joints: np.ndarray, cameras: Sequence[Camera], keypoints: np.ndarray,
-                            confidence: np.ndarray, scale_px: float | None = None,
+                            confidence: np.ndarray, scale: float = SCALE,
                             weights: Sequence[float] | None = None, elbow: float = 1.0,
                             swaps: str = "body") -> np.ndarray:
     """:func:`keypoint_cost` written as plain loops over poses, views, labellings and joints."""
@@ -165,7 +166,7 @@ def keypoint_cost_reference(joints: np.ndarray, cameras: Sequence[Camera], keypo
             sh, el = J[n, JOINT_INDEX[f"{side}_shoulder"]].copy(), J[n, JOINT_INDEX[f"{side}_elbow"]].copy()
             J[n, JOINT_INDEX[f"{side}_elbow"]] = sh + elbow * (el - sh)
     a = [1.0] * len(JOINTS15) if weights is None else [float(v) for v in weights]
-    s = SCALE * float(np.hypot(cameras[0].width, cameras[0].height)) if scale_px is None else float(scale_px)
+    s = float(scale) * float(np.hypot(cameras[0].width, cameras[0].height))
     out = np.zeros(len(J))
     for n in range(len(J)):
         acc, views = 0.0, 0

@@ -97,7 +97,7 @@ class RunProgress:
                 if "recovered" in z:
                     rows["recovered"] = z["recovered"]
             else:
-                rows = self._read_rows()
+                rows = self._checked()  # mapped for reading; the rows done are copied below
         except (ValueError, TypeError, KeyError, json.JSONDecodeError) as exc:
             raise FormatError(f"does not fit this run ({exc}); delete it to track run {self.run} afresh",
                               path=self.state_file) from None
@@ -115,12 +115,6 @@ class RunProgress:
         if frames.dtype != self.dtype or frames.shape != self.shape:
             raise ValueError(f"{self.frames_file.name} holds {frames.shape} {frames.dtype}, expected {self.shape}")
         return frames
-
-    def _read_rows(self) -> np.ndarray:
-        frames = self._checked()
-        rows = np.array(frames)  # a copy: the mapping is let go
-        del frames
-        return rows
 
     def start(self, state: ProgressState | None) -> None:
         """Open the frames file for writing: a new one, or the loaded run's (rows of the earlier layout copied)."""
