@@ -27,7 +27,7 @@ from swarmpose.body.kinematics import fk_pose_into
 from swarmpose.body.model import BodyModel
 from swarmpose.errors import ConfigError
 
-__all__ = ["HardPriors"]
+__all__ = ["HardPriors", "pose_valid"]
 
 #: Hash of body/kinematics.py, whose FK the fused kernel calls: numba's cache sees edits to this file only
 #: (tests/test_numba_cache.py says when to change it and gives the new value).
@@ -74,12 +74,17 @@ class HardPriors:
         """``(N,)`` True where the pose is inside the joint limits and free of inter-penetration (one numba pass:
         limits, kinematics, collisions; :meth:`valid_reference` is the plain version it is tested against)."""
         p = np.ascontiguousarray(self.model.check_poses(poses))
+        out = np.empty(p.shape[0], dtype=np.bool_)
+        _valid_kernel(p, *self.kernel_tables(), out)
+        return out
+
+    def kernel_tables(self) -> tuple:
+        """The arguments of :func:`pose_valid` after the pose and its scratch: limits, kinematic and cone tables,
+        collision pairs (none when ``check_collisions`` is off), sphere fractions, ``1 - penetration_tolerance``."""
         ca = self.model.cone_arrays
         pairs = self._pairs if self.check_collisions else self._pairs[:0]
-        out = np.empty(p.shape[0], dtype=np.bool_)
-        _valid_kernel(p, self.model.lower, self.model.upper, self.check_limits, *self.model.kin.as_tuple(), ca.joint,
-                      ca.start, ca.end, ca.radii, ca.scale, pairs, self._frac, 1.0 - self.penetration_tolerance, out)
-        return out
+        return (self.model.lower, self.model.upper, self.check_limits, *self.model.kin.as_tuple(), ca.joint,
+                ca.start, ca.end, ca.radii, ca.scale, pairs, self._frac, 1.0 - self.penetration_tolerance)
 
     def valid_reference(self, poses: np.ndarray) -> np.ndarray:
         """Plain version of :meth:`valid`: the limits and :meth:`collisions`, as separate batched steps."""
@@ -205,25 +210,30 @@ def _collisions_kernel(T, joint, start, end, radii, scale, pairs, frac, keep, ou
             out[n, i] = _pair_hits(T[n], pairs[i, 0], pairs[i, 1], joint, start, end, radii, scale, frac, keep)
 
 
+@nb.njit(cache=True, nogil=True, inline="always")
+def pose_valid(pose, T, lower, upper, check_limits, parents, offsets, rot_axis, rot_sign, rot_param, trans_param,
+               joint, start, end, radii, scale, pairs, frac, keep):
+    """One pose of :meth:`HardPriors.valid`: the limits, then (inside them) kinematics into the scratch ``T (J, 3, 4)``
+    and the collision pairs, stopping at the first pair that collides. The arguments after ``T`` are
+    :meth:`HardPriors.kernel_tables`."""
+    if check_limits:
+        for d in range(pose.shape[0]):
+            v = pose[d]
+            if not (v >= lower[d] and v <= upper[d]):
+                return False
+    if pairs.shape[0] > 0:
+        fk_pose_into(pose, parents, offsets, rot_axis, rot_sign, rot_param, trans_param, T)
+        for i in range(pairs.shape[0]):
+            if _pair_hits(T, pairs[i, 0], pairs[i, 1], joint, start, end, radii, scale, frac, keep):
+                return False
+    return True
+
+
 @nb.njit(cache=True, nogil=True)
 def _valid_kernel(poses, lower, upper, check_limits, parents, offsets, rot_axis, rot_sign, rot_param, trans_param,
                   joint, start, end, radii, scale, pairs, frac, keep, out):
-    """:meth:`HardPriors.valid` in one pass: the limits, then (for the poses inside them) kinematics and the
-    collision pairs, stopping at the first pair that collides."""
+    """:meth:`HardPriors.valid` in one pass (:func:`pose_valid` per pose)."""
     T = np.empty((parents.shape[0], 3, 4))
-    D = poses.shape[1]
     for n in range(poses.shape[0]):
-        ok = True
-        if check_limits:
-            for d in range(D):
-                v = poses[n, d]
-                if not (v >= lower[d] and v <= upper[d]):
-                    ok = False
-                    break
-        if ok and pairs.shape[0] > 0:
-            fk_pose_into(poses[n], parents, offsets, rot_axis, rot_sign, rot_param, trans_param, T)
-            for i in range(pairs.shape[0]):
-                if _pair_hits(T, pairs[i, 0], pairs[i, 1], joint, start, end, radii, scale, frac, keep):
-                    ok = False
-                    break
-        out[n] = ok
+        out[n] = pose_valid(poses[n], T, lower, upper, check_limits, parents, offsets, rot_axis, rot_sign, rot_param,
+                            trans_param, joint, start, end, radii, scale, pairs, frac, keep)

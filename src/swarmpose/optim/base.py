@@ -25,6 +25,12 @@ Every optimiser takes ``lower``/``upper`` ``(D,)`` bounds (``±inf`` allowed) an
 A pose outside the bounds counts as a constraint violation and is re-drawn like one (thesis sec. 5.3.2:
 up to 10 re-draws of the move); rows still outside after the last re-draw are clipped into the box, so
 ``ask()`` never returns a pose outside ``[lower, upper]``.
+
+A constraint may also carry ``constricted_moves(v, x, pbest, gbest, c, chi, vmax, lower, upper, max_redraws,
+rng) -> (x, v, valid)``: :class:`~swarmpose.optim.pso.ConstrictedPSO`'s move of every particle (eq. 5.7-5.8,
+``c1 = c2 = c``), its re-draws and the final clipping, done in one compiled call that draws the same random
+numbers and returns the same arrays as the plain path (:func:`~swarmpose.optim.operators.redraw_invalid`,
+:func:`feasibility`, :func:`clip_invalid`). The tracker's hard priors carry one (``swarmpose.track.constraint``).
 """
 
 from __future__ import annotations

@@ -38,6 +38,7 @@ __all__ = [
     "global_best",
     "kernel_bandwidth",
     "linear_coefficients",
+    "move_rows_kernel",
     "redraw_invalid",
     "resample_multinomial",
     "resample_systematic",
@@ -170,12 +171,14 @@ def constricted_move(
     e = rng.random((2, rows.shape[0], x.shape[1]))  # e1 then e2: the stream constricted_velocity draws
     x_new = np.empty((rows.shape[0], x.shape[1]))
     v_new = np.empty_like(x_new)
-    _move_kernel(v, x, pbest, gbest, rows, e, float(c1), float(c2), float(chi), vmax, x_new, v_new)
+    move_rows_kernel(v, x, pbest, gbest, rows, e, float(c1), float(c2), float(chi), vmax, x_new, v_new)
     return x_new, v_new
 
 
 @nb.njit(cache=True, nogil=True)
-def _move_kernel(v, x, pbest, gbest, rows, e, c1, c2, chi, vmax, x_new, v_new):
+def move_rows_kernel(v, x, pbest, gbest, rows, e, c1, c2, chi, vmax, x_new, v_new):
+    """The compiled move of :func:`constricted_move`: row ``rows[r]`` moved with ``e[:, r]`` into ``x_new[r]``,
+    ``v_new[r]`` (other compiled code that makes PSO moves calls it, so that the numbers stay the same)."""
     # the operations of constricted_velocity, clamp_velocity and x + v in numpy's order (no fused multiply-add)
     for r in range(rows.shape[0]):
         i = rows[r]

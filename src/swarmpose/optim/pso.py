@@ -232,12 +232,17 @@ class ConstrictedPSO(Optimizer):
             gbest = self._pbest_x[self._g]
             x_old, v_old, pbest = self._x, self._v, self._pbest_x
 
-            def propose(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-                # v = chi (v + c1 e1 (p_i - x_i) + c2 e2 (p_g - x_i))  (eq. 5.8); |v| <= 2 sigma; x = x + v (eq. 5.7)
-                return constricted_move(v_old, x_old, pbest, gbest, rows, c, c, chi, self._vmax, rng)
+            fused = getattr(self._constraint, "constricted_moves", None)
+            if fused is not None:  # the same moves, re-draws and clipping in one compiled call (optim.base)
+                x, v, valid = fused(v_old, x_old, pbest, gbest, c, chi, self._vmax, self._lower, self._upper,
+                                    self._max_redraws, rng)
+            else:
+                def propose(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                    # v = chi (v + c1 e1 (p_i - x_i) + c2 e2 (p_g - x_i))  (eq. 5.8); |v| <= 2 sigma; x = x + v (eq. 5.7)
+                    return constricted_move(v_old, x_old, pbest, gbest, rows, c, c, chi, self._vmax, rng)
 
-            (x, v), valid = redraw_invalid(propose, self._is_valid, self._n, self._max_redraws)
-            x, valid = self._finish_moves(x, valid)
+                (x, v), valid = redraw_invalid(propose, self._is_valid, self._n, self._max_redraws)
+                x, valid = self._finish_moves(x, valid)
         self._x, self._v, self._valid = x, v, valid
         return x
 

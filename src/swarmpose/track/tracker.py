@@ -44,6 +44,7 @@ from swarmpose.body.spec import Subject, load_spec
 from swarmpose.errors import ConfigError, DataError, FormatError
 from swarmpose.io.files import load_npz, read_json_object, save_npz
 from swarmpose.metrics import joint_acceleration, track_errors, valid_frames
+from swarmpose.track.constraint import PriorsConstraint
 from swarmpose.track.feature_store import FeatureStore
 from swarmpose.track.motion import parse_motion
 from swarmpose.track.observation import IMAGE_FITNESS, MARKER_FITNESS, Prefetcher, frame_observation
@@ -619,7 +620,7 @@ def run_tracker(
         extra_options = {**algo.frame_options, **extra_options}  # the configuration's, under the run's own
     feature_options = parse_feature_options(cfg.feature_options)
     timer = PartTimer()
-    constraint = timer.wrap("priors", HardPriors(model).valid)
+    constraint = PriorsConstraint(HardPriors(model), timer)  # timed as "priors"; PSO moves compiled
     untimed_fitness = _make_fitness(setup)
     fitness = TimedFitness(untimed_fitness, timer)
     T, D = len(setup.frame_indices), model.n_params
