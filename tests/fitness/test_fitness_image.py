@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from swarmpose.errors import ConfigError, ShapeError
 from swarmpose.features import FrameFeatures
@@ -18,6 +20,7 @@ from swarmpose.fitness import (
     prepare_frame,
     silhouette_score,
 )
+from swarmpose.fitness.base import thesis_fitness
 from swarmpose.fitness.scene import demo_cameras, demo_frame
 from swarmpose.fitness.torch_backend import torch_available
 
@@ -202,6 +205,33 @@ def test_silhouette_score_is_eq_5_5():
     np.testing.assert_allclose(deutscher_reid_log_weight(none, np.ones((1, 1)), none, none), [-1.0])
     # the observed-coverage weight a of eq. 5.5 (0.5 in the thesis) weighs Y / O, and 1 - a weighs Y / P
     np.testing.assert_allclose(silhouette_score([[2]], [[4]], [8], a=0.2), [[0.8 * 2 / 4 + 0.2 * 2 / 8]])
+
+
+@settings(max_examples=60, deadline=None)
+@given(n=st.integers(1, 12), c=st.sampled_from([1, 2, 3, 4, 5, 7, 8, 9, 15, 16, 17, 33, 130]),
+       seed=st.integers(0, 2**32 - 1), a=st.sampled_from([0.0, 0.2, 0.5, 1.0]))
+def test_thesis_fitness_is_the_plain_means_to_the_last_bit(n, c, seed, a):
+    """The compiled f = mean_c f_s + mean_c f_e against the numpy formulas it replaces, bit for bit: empty
+    silhouettes (both empty, one empty), views without edge samples, up to and past the compiled 128 views."""
+    rng = np.random.default_rng(seed)
+    O = rng.integers(0, 500, c) * (rng.random(c) < 0.8)
+    P = rng.integers(0, 600, (n, c)) * (rng.random((n, c)) < 0.8)
+    Y = np.minimum(rng.integers(0, 600, (n, c)), np.minimum(P, O[None]))
+    count = rng.integers(0, 60, (n, c)).astype(np.float64)
+    esum = count * rng.random((n, c))
+    for sil, edge in ((True, True), (True, False), (False, True)):
+        want = np.zeros(n)
+        if sil:
+            want += silhouette_score(Y, P, O, a).mean(axis=1)
+        if edge:
+            want += edge_score(esum, count).mean(axis=1)
+        got = thesis_fitness(Y, P, O, esum, count, a, silhouette=sil, edge=edge)
+        assert np.array_equal(got, want)
+    counts = np.stack([Y, P], axis=-1)  # the kernel's layout: strided views, as Measurements.from_arrays gives
+    assert np.array_equal(thesis_fitness(counts[..., 0], counts[..., 1], O, esum, count, a),
+                          silhouette_score(Y, P, O, a).mean(axis=1) + edge_score(esum, count).mean(axis=1))
+    with pytest.raises(ValueError, match="cannot exceed"):
+        thesis_fitness(P + O.max() + 1, P, O, esum, count, a)
 
 
 # --------------------------------------------------------------------------- on a synthesised walk

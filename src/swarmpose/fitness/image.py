@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from typing import Any
 
@@ -16,6 +17,7 @@ from swarmpose.fitness.base import (
     edge_score,
     parse_image_options,
     silhouette_score,
+    thesis_fitness,
 )
 from swarmpose.fitness.distance import (
     DEFAULT_STRIDE_PX,
@@ -36,6 +38,8 @@ __all__ = ["ImageFitness", "SilhouetteEdgeFitness", "DeutscherReidFitness"]
 
 def _finite_rows(p: np.ndarray, model) -> tuple[np.ndarray, np.ndarray | None]:
     """Replace non-finite pose rows by the zero pose (the kernels need finite input); return the mask."""
+    if math.isfinite(p.sum()):  # every entry finite (a non-finite one makes the sum so; an overflow looks below)
+        return p, None
     bad = ~np.isfinite(p).all(axis=1)
     if not bad.any():
         return p, None
@@ -88,6 +92,7 @@ class ImageFitness:
         self.default_options = ImageOptions(edge_cones=edge_cones, edge_top=edge_top, terms=terms)
         self._names = tuple(model.cone_arrays.names)
         self._requests: dict[ImageOptions, Request] = {}
+        self._parsed: dict[tuple, ImageOptions] = {}  # per-stage option mappings seen, parsed once
         self._request(self.default_options)  # validates the defaults now
         self.prepared: PreparedFrame | None = None
 
@@ -113,6 +118,19 @@ class ImageFitness:
         return self.prepared
 
     # ---------------------------------------------------------------- options
+    def _options(self, options: Mapping[str, Any] | None) -> ImageOptions:
+        """:func:`parse_image_options` over the defaults, kept per mapping seen (the stages pass the same few)."""
+        if not options:
+            return self.default_options
+        try:
+            key = tuple(options.items())
+            opts = self._parsed.get(key)
+        except TypeError:  # an unhashable value: parsed (and refused) as it comes
+            return parse_image_options(options, self.default_options)
+        if opts is None:
+            opts = self._parsed[key] = parse_image_options(options, self.default_options)
+        return opts
+
     def _request(self, opts: ImageOptions) -> Request:
         req = self._requests.get(opts)
         if req is None:
@@ -153,7 +171,7 @@ class ImageFitness:
         """
         prepared = self._bound()
         p = self.model.check_poses(poses)
-        opts = parse_image_options(options, self.default_options)
+        opts = self._options(options)
         req = self._request(opts)
         if p.shape[0] == 0:
             return np.zeros(0)
@@ -264,12 +282,8 @@ class SilhouetteEdgeFitness(ImageFitness):
                        edge=opts.terms != "silhouette", region=False, edge_spacing=self.edge_spacing)
 
     def _score(self, m: Measurements, prepared: PreparedFrame, opts: ImageOptions) -> np.ndarray:
-        f = np.zeros(m.overlap.shape[0])
-        if opts.terms != "edge":
-            f += silhouette_score(m.overlap, m.projected, prepared.observed_area, self.a).mean(axis=1)
-        if opts.terms != "silhouette":
-            f += edge_score(m.edge_sum, m.edge_count).mean(axis=1)
-        return f
+        return thesis_fitness(m.overlap, m.projected, prepared.observed_area, m.edge_sum, m.edge_count, self.a,
+                              silhouette=opts.terms != "edge", edge=opts.terms != "silhouette")
 
     def terms(self, poses: np.ndarray, options: Mapping[str, Any] | None = None) -> tuple[np.ndarray, np.ndarray]:
         """``(f_s, f_e)``, each ``(N, C)`` per view (for diagnostics and tests).
