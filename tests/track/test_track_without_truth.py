@@ -69,6 +69,18 @@ def test_keypoint_cost_matches_its_reference_and_is_robust():
     kp_near = reproject(cams, detector_elbows(truth, 0.9))
     assert keypoint_cost(truth[None], cams, kp_near, conf, elbow=0.9)[0] < 1e-12
     assert keypoint_cost(truth[None], cams, kp_near, conf)[0] > 1e-4
+    # the confidence threshold and power: the plain loops agree; below the threshold a detection does not count,
+    # power 0 weighs every counted detection alike
+    for threshold, power in ((0.1, 1.0), (0.5, 0.5), (0.3, 0.0)):
+        assert np.allclose(keypoint_cost(poses, cams, kp, conf, threshold=threshold, power=power),
+                           keypoint_cost_reference(poses, cams, kp, conf, threshold=threshold, power=power),
+                           atol=1e-12)
+    low = conf.copy()
+    low[:, elbows] = 0.15
+    assert keypoint_cost(moved[None], cams, kp, low)[0] < 1e-12  # under the default threshold: not counted
+    assert keypoint_cost(moved[None], cams, kp, low, threshold=0.1)[0] > 1e-3
+    flat = keypoint_cost(moved[None], cams, kp, low, threshold=0.1, power=0.0)[0]
+    assert flat > keypoint_cost(moved[None], cams, kp, low, threshold=0.1)[0]  # the elbows weigh as much as the rest
 
 
 def test_the_limbs_swaps_read_a_view_whose_legs_alone_are_swapped():

@@ -9,6 +9,7 @@ from typing import Any, Protocol, runtime_checkable
 import numba as nb
 import numpy as np
 
+from swarmpose.detection.joints import MIN_CONFIDENCE as KEYPOINT_THRESHOLD
 from swarmpose.errors import ConfigError, ShapeError, option_items
 from swarmpose.fitness.keypoints import SCALE as KEYPOINT_SCALE
 from swarmpose.fitness.keypoints import SWAPS, joint_weights
@@ -19,7 +20,7 @@ __all__ = ["Fitness", "ImageOptions", "parse_image_options", "TERMS", "silhouett
 #: Values of the ``"terms"`` option.
 TERMS = ("silhouette+edge", "silhouette", "edge", "distance")
 _OPTION_KEYS = ("edge_cones", "edge_top", "terms", "distance", "keypoints", "keypoint_joints", "keypoint_elbow",
-                "keypoint_swaps", "keypoint_scale")
+                "keypoint_swaps", "keypoint_scale", "keypoint_threshold", "keypoint_power")
 
 
 @runtime_checkable
@@ -90,6 +91,8 @@ class ImageOptions:
     keypoint_elbow: float = 1.0
     keypoint_swaps: str = "body"
     keypoint_scale: float = KEYPOINT_SCALE
+    keypoint_threshold: float = KEYPOINT_THRESHOLD
+    keypoint_power: float = 1.0
 
     def __post_init__(self) -> None:
         if self.terms not in TERMS:
@@ -116,6 +119,15 @@ class ImageOptions:
                 f = float("nan")
             if isinstance(value, bool) or not 0 < f <= 1:
                 raise ConfigError(f"{name} must be a fraction {of}, got {value!r}")
+            object.__setattr__(self, name, f)
+        for name, lo, hi in (("keypoint_threshold", 0.0, 1.0), ("keypoint_power", 0.0, 4.0)):
+            value = getattr(self, name)
+            try:
+                f = float(value)
+            except (TypeError, ValueError):
+                f = float("nan")
+            if isinstance(value, bool) or not lo <= f <= hi:
+                raise ConfigError(f"{name} must be a number in [{lo:g}, {hi:g}], got {value!r}")
             object.__setattr__(self, name, f)
         if self.keypoint_swaps not in SWAPS:
             raise ConfigError(f"keypoint_swaps must be one of {', '.join(SWAPS)}, got {self.keypoint_swaps!r}")
@@ -144,7 +156,9 @@ def parse_image_options(options: Mapping[str, Any] | None, default: ImageOptions
                         keypoint_joints=options.get("keypoint_joints", default.keypoint_joints),
                         keypoint_elbow=options.get("keypoint_elbow", default.keypoint_elbow),
                         keypoint_swaps=options.get("keypoint_swaps", default.keypoint_swaps),
-                        keypoint_scale=options.get("keypoint_scale", default.keypoint_scale))
+                        keypoint_scale=options.get("keypoint_scale", default.keypoint_scale),
+                        keypoint_threshold=options.get("keypoint_threshold", default.keypoint_threshold),
+                        keypoint_power=options.get("keypoint_power", default.keypoint_power))
 
 
 def silhouette_score(Y: np.ndarray, P: np.ndarray, O: np.ndarray, a: float = 0.5) -> np.ndarray:

@@ -188,7 +188,8 @@ class ImageFitness:
             a = joint_weights(opts.keypoint_joints) if opts.keypoint_joints else None
             scores -= opts.keypoints * keypoint_cost(self.model.joints15(p), prepared.cameras, f.keypoints,
                                                      f.keypoint_confidence, weights=a, elbow=opts.keypoint_elbow,
-                                                     swaps=opts.keypoint_swaps, scale=opts.keypoint_scale)
+                                                     swaps=opts.keypoint_swaps, scale=opts.keypoint_scale,
+                                                     threshold=opts.keypoint_threshold, power=opts.keypoint_power)
         if bad is not None:
             scores[bad] = np.nan  # the optimisers' "invalid" (shared/design.md; optim.base score rule)
         return scores

@@ -86,9 +86,10 @@ def joint_weights(spec: str) -> tuple[float, ...]:
     return tuple(a)
 
 
-def _weights(confidence: np.ndarray, keypoints: np.ndarray) -> np.ndarray:
-    ok = np.isfinite(keypoints).all(axis=-1) & (confidence >= MIN_CONFIDENCE)
-    return np.where(ok, confidence, 0.0)
+def _weights(confidence: np.ndarray, keypoints: np.ndarray, threshold: float = MIN_CONFIDENCE,
+             power: float = 1.0) -> np.ndarray:
+    ok = np.isfinite(keypoints).all(axis=-1) & (confidence >= threshold) & (confidence > 0)
+    return np.where(ok, np.where(ok, confidence, 1.0) ** power, 0.0)
 
 
 def detector_elbows(joints: np.ndarray, fraction: float) -> np.ndarray:
@@ -108,7 +109,8 @@ def detector_elbows(joints: np.ndarray, fraction: float) -> np.ndarray:
 
 def keypoint_cost(joints: np.ndarray, cameras: Sequence[Camera], keypoints: np.ndarray,
                   confidence: np.ndarray, scale: float = SCALE,
-                  weights: Sequence[float] | None = None, elbow: float = 1.0, swaps: str = "body") -> np.ndarray:
+                  weights: Sequence[float] | None = None, elbow: float = 1.0, swaps: str = "body",
+                  threshold: float = MIN_CONFIDENCE, power: float = 1.0) -> np.ndarray:
     """``-K``: the robust keypoint cost ``(N,)`` in ``[0, 1]`` of model joints ``(N, 15, 3)`` (mm).
 
     Parameters
@@ -124,6 +126,9 @@ def keypoint_cost(joints: np.ndarray, cameras: Sequence[Camera], keypoints: np.n
         Where the detector's elbow is taken to lie on the model's upper arm (:func:`detector_elbows`).
     swaps : {"body", "limbs", "ends"}
         The labellings tried per view (:data:`SWAPS`).
+    threshold, power : float
+        A detection counts from confidence ``threshold`` on (default :data:`MIN_CONFIDENCE`), with weight
+        ``confidence ** power`` (default 1: its confidence; 0: every counted detection alike).
     """
     J = detector_elbows(np.asarray(joints, dtype=np.float64), elbow)
     perms = _SWAP_INDEX[swaps]
@@ -133,7 +138,7 @@ def keypoint_cost(joints: np.ndarray, cameras: Sequence[Camera], keypoints: np.n
     views = 0
     for c, cam in enumerate(cameras):
         kp = np.asarray(keypoints[c], dtype=np.float64)
-        w = _weights(np.asarray(confidence[c], dtype=np.float64), kp)
+        w = _weights(np.asarray(confidence[c], dtype=np.float64), kp, threshold, power)
         # per labelling, model joint j's weight a_j times its detection's confidence
         labellings = [(perm, w[perm] if a is None else w[perm] * a) for perm in perms]
         if all(ww.sum() <= 0 for _, ww in labellings):
@@ -158,7 +163,7 @@ def keypoint_cost(joints: np.ndarray, cameras: Sequence[Camera], keypoints: np.n
 def keypoint_cost_reference(joints: np.ndarray, cameras: Sequence[Camera], keypoints: np.ndarray,
                             confidence: np.ndarray, scale: float = SCALE,
                             weights: Sequence[float] | None = None, elbow: float = 1.0,
-                            swaps: str = "body") -> np.ndarray:
+                            swaps: str = "body", threshold: float = MIN_CONFIDENCE, power: float = 1.0) -> np.ndarray:
     """:func:`keypoint_cost` written as plain loops over poses, views, labellings and joints."""
     J = np.array(joints, dtype=np.float64)
     for n in range(len(J)):
@@ -171,8 +176,8 @@ def keypoint_cost_reference(joints: np.ndarray, cameras: Sequence[Camera], keypo
     for n in range(len(J)):
         acc, views = 0.0, 0
         for c, cam in enumerate(cameras):
-            conf = [float(confidence[c][j]) if np.isfinite(keypoints[c][j]).all()
-                    and confidence[c][j] >= MIN_CONFIDENCE else 0.0 for j in range(len(JOINTS15))]
+            conf = [float(confidence[c][j]) ** power if np.isfinite(keypoints[c][j]).all()
+                    and confidence[c][j] >= threshold and confidence[c][j] > 0 else 0.0 for j in range(len(JOINTS15))]
             labellings = []
             for perm in SWAPS[swaps]:
                 wl = [conf[perm[j]] * a[j] for j in range(len(JOINTS15))]  # model joint j, detection perm[j]

@@ -23,9 +23,10 @@ PART_HELP = {
     "features": "waiting for the frame (read, background subtraction, silhouettes and edge maps run ahead on a "
                 "worker thread) and the per-frame preparation",
     "motion": "motion model: the prediction and the moved particle set",
-    "optimiser": "the search's own work (ask/tell, sampling, weights), without fitness and priors",
+    "optimiser": "the search's own work (ask/tell, sampling, weights), without fitness and priors; a PSO's moves "
+                 "with the priors that gate them, which run as one compiled call",
     "fitness": "fitness kernels (kinematics, projection, silhouette, edges; the distance maps)",
-    "priors": "hard priors: joint limits and limb collisions",
+    "priors": "hard priors: joint limits and limb collisions (where not inside a PSO's compiled moves)",
     "recovery": "loss detection and re-search, without fitness and priors",
     "keypoint_ik": "the fit of each frame's pose to its triangulated keypoints (refined-keypoints)",
     "writing": "results written per frame (progress files)",
