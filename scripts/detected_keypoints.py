@@ -9,11 +9,12 @@ tracker, which weighs keypoints wherever a sequence carries them) into ``WORK/<c
 against the ground truth; ``--without`` tracks it a second time with ``--fitness-options keypoints=0`` into
 ``WORK/<clip>-<algo>-keypoints0`` (the keypoint term off; the default's fit to the keypoints stays).
 
-``--fitness-options TEXT`` passes the track's fitness options on (e.g. ``keypoint_swaps=ends``) and names the
-results folder after them.
+``--fitness-options TEXT`` passes the track's fitness options on (e.g. ``keypoint_swaps=ends``) and ``--variant
+TEXT`` its optimiser variant (e.g. ``keypoint_ik=off``, the default without its fit to the keypoints); both name
+the results folder.
 
 Run:  .venv/bin/python scripts/detected_keypoints.py [--clips CLIP ...] [--fps 20] [--runs 3] [--algo A]
-      [--fitness-options TEXT] [--without] [--work results/detected-keypoints] [--json]
+      [--fitness-options TEXT] [--variant TEXT] [--without] [--work results/detected-keypoints] [--json]
 Needs MediaPipe Pose (``make detect``).
 """
 
@@ -96,6 +97,7 @@ def main() -> None:
     ap.add_argument("--runs", type=int, default=3)
     ap.add_argument("--algo", default=DEFAULT_ALGO)
     ap.add_argument("--fitness-options", default="", help="the track's --fitness-options (e.g. keypoint_swaps=ends)")
+    ap.add_argument("--variant", default="", help="the track's --variant (e.g. keypoint_ik=off)")
     ap.add_argument("--without", action="store_true", help="also track with keypoints=0 (the term off)")
     ap.add_argument("--work", type=Path, default=Path("results/detected-keypoints"))
     ap.add_argument("--json", action="store_true")
@@ -112,7 +114,10 @@ def main() -> None:
             if label == "without" and not args.without:
                 continue
             extra = ["--fitness-options", ",".join(options)] if options else []
-            tag = "".join(f"-{o.replace('=', '')}" for o in options).replace(",", "-").replace(":", "").replace("+", "")
+            if args.variant:
+                extra += ["--variant", args.variant]
+            tag = "".join(f"-{o.replace('=', '')}" for o in [*options, *([args.variant] if args.variant else [])])
+            tag = tag.replace(",", "-").replace(":", "").replace("+", "")
             out = args.work / f"{name}-{args.algo}{tag}"
             shutil.rmtree(out, ignore_errors=True)
             run([*CLI, "track", str(hybrid), "--algo", args.algo, "--fps", f"{args.fps:g}", "--runs", str(args.runs),
@@ -126,7 +131,7 @@ def main() -> None:
                   + (f"; keypoints=0: {row['without']['d_mean']:.1f}" if "without" in row else ""), flush=True)
     if args.json:
         print(json.dumps({"algo": args.algo, "fps": args.fps, "runs": args.runs,
-                          "fitness_options": args.fitness_options, "clips": rows}))
+                          "fitness_options": args.fitness_options, "variant": args.variant, "clips": rows}))
     else:
         d = [r["with"]["d_mean"] for r in rows]
         print(f"mean over {len(d)} clips: {np.mean(d):.1f} mm")
