@@ -210,3 +210,10 @@ def test_the_keypoint_joints_option_is_read_and_a_bad_one_refused():
     for bad in ("0", "1.5", "wide", "on"):
         with pytest.raises(ConfigError, match="keypoint_scale must be a fraction"):
             parse_image_options(parse_fitness_options(f"keypoint_scale={bad}"), ImageOptions())
+    opts = parse_image_options(parse_fitness_options("keypoint_threshold=0.1,keypoint_power=0"), ImageOptions())
+    assert opts.keypoint_threshold == 0.1 and opts.keypoint_power == 0.0
+    assert ImageOptions().keypoint_threshold == 0.3 and ImageOptions().keypoint_power == 1.0
+    for name, bad in (("keypoint_threshold", "1.5"), ("keypoint_threshold", "-0.1"), ("keypoint_power", "5"),
+                      ("keypoint_power", "on"), ("keypoint_power", "strong")):
+        with pytest.raises(ConfigError, match=f"{name} must be a number in"):
+            parse_image_options(parse_fitness_options(f"{name}={bad}"), ImageOptions())

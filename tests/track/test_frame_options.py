@@ -73,12 +73,15 @@ def test_the_default_weighs_keypoints_where_the_sequence_has_them(short_sequence
 
 
 def test_the_keypoint_terms_scale_and_swaps_reach_the_searches(keypoint_sequence: Path):
-    """``keypoint_scale`` at the term's own SCALE and ``keypoint_swaps=body`` track pose for pose as without them;
-    another scale changes the track."""
+    """``keypoint_scale`` at the term's own SCALE, ``keypoint_swaps=body``, ``keypoint_threshold=0.3`` and
+    ``keypoint_power=1`` track pose for pose as without them; another scale, threshold or power changes the track."""
     default = _track(keypoint_sequence, "refined-heading")
     np.testing.assert_array_equal(default, _track(keypoint_sequence, "refined-heading",
-                                                  options="keypoint_scale=0.02,keypoint_swaps=body"))
+                                                  options="keypoint_scale=0.02,keypoint_swaps=body,"
+                                                          "keypoint_threshold=0.3,keypoint_power=1"))
     assert not np.array_equal(default, _track(keypoint_sequence, "refined-heading", options="keypoint_scale=0.005"))
+    assert not np.array_equal(default, _track(keypoint_sequence, "refined-heading",
+                                              options="keypoint_threshold=0.05,keypoint_power=0"))
 
 
 def test_the_keypoint_ik_variant():
