@@ -206,3 +206,27 @@ def test_the_fused_check_agrees_with_the_plain_one(spec, limits, collisions):
     got, want = pr.valid(x), pr.valid_reference(x)
     assert np.array_equal(got, want)
     assert 0.05 < got.mean() < 0.95  # both answers are exercised
+
+
+def test_segment_distance_is_the_closest_approach():
+    """The early rejection of a collision pair reads the distance between the two cones' axes: against the
+    minimum over a fine grid of both segments' points, including parallel, crossing and point-like segments."""
+    from swarmpose.body.priors import _segment_distance2
+
+    rng = np.random.default_rng(3)
+    cases = [rng.normal(0, 100, 12) for _ in range(200)]
+    p = rng.normal(0, 100, 3)
+    d = rng.normal(0, 100, 3)
+    cases += [np.r_[p, p + d, p + [0, 0, 30], p + d + [0, 0, 30]],  # parallel
+              np.r_[p, p + d, p + d, p + 2 * d],  # touching end to end, collinear
+              np.r_[p, p, p + d, p + d],  # both point-like
+              np.r_[p, p, p - d, p + d]]  # a point on the other segment
+    g = np.linspace(0.0, 1.0, 401)
+    for c in cases:
+        a, b, r, t = c[:3], c[3:6], c[6:9], c[9:]
+        pa = a + g[:, None] * (b - a)
+        pb = r + g[:, None] * (t - r)
+        grid = np.sqrt(((pa[:, None] - pb[None]) ** 2).sum(-1).min())
+        exact = np.sqrt(_segment_distance2(*a, *b, *r, *t))
+        assert exact <= grid + 1e-9
+        assert grid - exact <= 0.01 * (np.linalg.norm(b - a) + np.linalg.norm(t - r)) + 1e-9
