@@ -123,6 +123,24 @@ def test_options_select_samples(model, scene, true_pose):
     np.testing.assert_allclose(torso_fit(true_pose[None]), fit.evaluate(true_pose[None], {"edge_cones": "torso"}))
 
 
+def test_stage_options_are_parsed_once_and_still_checked(model, scene, true_pose):
+    """A stage's option mapping is parsed once per fitness (the same options object comes back), gives the same
+    scores as a fresh fitness, and a bad option is refused every time it is passed, never kept."""
+    fit = make_fitness("silhouette_edge", model).bind(scene)
+    stage = {"edge_cones": "torso", "edge_top": True}
+    first = fit._options(stage)
+    assert fit._options(dict(stage)) is first
+    fresh = make_fitness("silhouette_edge", model).bind(scene)
+    assert np.array_equal(fit.evaluate(true_pose[None], stage), fresh.evaluate(true_pose[None], stage))
+    for _ in range(2):
+        with pytest.raises(ConfigError, match="unknown fitness option"):
+            fit.evaluate(true_pose[None], {"edge_cone": "torso"})
+    for i in range(300):  # a caller building new options every time: the cache stays bounded
+        fit._options({"distance": float(i)})
+    assert len(fit._parsed) <= 256
+    assert fit._options({"edge_cones": ["torso"]}).edge_cones == ("torso",)  # an unhashable value: parsed as it comes
+
+
 def test_degenerate_frames(model, rig, true_pose):
     """Empty observations and a model out of view: finite scores, the documented values."""
     C, H, W = 4, rig[0].height, rig[0].width

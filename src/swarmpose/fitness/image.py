@@ -128,6 +128,8 @@ class ImageFitness:
         except TypeError:  # an unhashable value: parsed (and refused) as it comes
             return parse_image_options(options, self.default_options)
         if opts is None:
+            if len(self._parsed) >= 256:  # a caller that builds new options every time: keep the cache small
+                self._parsed.clear()
             opts = self._parsed[key] = parse_image_options(options, self.default_options)
         return opts
 
