@@ -80,6 +80,10 @@ class ImageOptions:
     keypoint_scale : float
         The keypoint term's robust scale ``s`` as a fraction of the image diagonal
         (:data:`swarmpose.fitness.keypoints.SCALE`, 0.02): a detection farther off than ``s`` costs nearly the most.
+    keypoint_threshold, keypoint_power : float
+        A detection counts in the keypoint term from confidence ``keypoint_threshold`` on (default
+        :data:`swarmpose.detection.joints.MIN_CONFIDENCE`, 0.3), with weight ``confidence ** keypoint_power``
+        (default 1; 0 weighs every counted detection alike).
     """
 
     edge_cones: str | tuple[str, ...] = "all"
@@ -101,33 +105,20 @@ class ImageOptions:
             raise ConfigError(f"edge_top must be a bool, got {self.edge_top!r}")
         if not isinstance(self.edge_cones, str):
             object.__setattr__(self, "edge_cones", tuple(self.edge_cones))
-        for name in ("distance", "keypoints"):
-            value = getattr(self, name)
-            try:
-                w = float(value)
-            except (TypeError, ValueError):
-                w = float("nan")
-            if isinstance(value, bool) or not (np.isfinite(w) and w >= 0):
-                raise ConfigError(f"{name} must be a weight >= 0, got {value!r}")
-            object.__setattr__(self, name, w)
-        for name, of in (("keypoint_elbow", "of the upper arm in (0, 1] (or auto, which a track measures on its "
-                                            "sequence)"), ("keypoint_scale", "of the image diagonal in (0, 1]")):
+        numbers = [(name, lambda f: np.isfinite(f) and f >= 0, "a weight >= 0") for name in ("distance", "keypoints")]
+        numbers += [("keypoint_elbow", lambda f: 0 < f <= 1, "a fraction of the upper arm in (0, 1] (or auto, which a "
+                                                            "track measures on its sequence)"),
+                    ("keypoint_scale", lambda f: 0 < f <= 1, "a fraction of the image diagonal in (0, 1]"),
+                    ("keypoint_threshold", lambda f: 0 <= f <= 1, "a number in [0, 1]"),
+                    ("keypoint_power", lambda f: 0 <= f <= 4, "a number in [0, 4]")]
+        for name, ok, expected in numbers:
             value = getattr(self, name)
             try:
                 f = float(value)
             except (TypeError, ValueError):
                 f = float("nan")
-            if isinstance(value, bool) or not 0 < f <= 1:
-                raise ConfigError(f"{name} must be a fraction {of}, got {value!r}")
-            object.__setattr__(self, name, f)
-        for name, lo, hi in (("keypoint_threshold", 0.0, 1.0), ("keypoint_power", 0.0, 4.0)):
-            value = getattr(self, name)
-            try:
-                f = float(value)
-            except (TypeError, ValueError):
-                f = float("nan")
-            if isinstance(value, bool) or not lo <= f <= hi:
-                raise ConfigError(f"{name} must be a number in [{lo:g}, {hi:g}], got {value!r}")
+            if isinstance(value, bool) or not ok(f):
+                raise ConfigError(f"{name} must be {expected}, got {value!r}")
             object.__setattr__(self, name, f)
         if self.keypoint_swaps not in SWAPS:
             raise ConfigError(f"keypoint_swaps must be one of {', '.join(SWAPS)}, got {self.keypoint_swaps!r}")

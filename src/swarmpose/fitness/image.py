@@ -160,7 +160,8 @@ class ImageFitness:
         poses : (N, D) array_like
         options : mapping, optional
             Per-stage overrides of ``edge_cones``, ``edge_top``, ``terms``, ``distance``, ``keypoints``,
-            ``keypoint_joints``, ``keypoint_elbow``, ``keypoint_swaps``, ``keypoint_scale``.
+            ``keypoint_joints``, ``keypoint_elbow``, ``keypoint_swaps``, ``keypoint_scale``,
+            ``keypoint_threshold``, ``keypoint_power``.
 
         Raises
         ------

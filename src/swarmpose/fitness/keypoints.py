@@ -89,7 +89,9 @@ def joint_weights(spec: str) -> tuple[float, ...]:
 def _weights(confidence: np.ndarray, keypoints: np.ndarray, threshold: float = MIN_CONFIDENCE,
              power: float = 1.0) -> np.ndarray:
     ok = np.isfinite(keypoints).all(axis=-1) & (confidence >= threshold) & (confidence > 0)
-    return np.where(ok, np.where(ok, confidence, 1.0) ** power, 0.0)
+    w = np.zeros(confidence.shape)
+    w[ok] = confidence[ok] ** power
+    return w
 
 
 def detector_elbows(joints: np.ndarray, fraction: float) -> np.ndarray:

@@ -34,15 +34,12 @@ class PriorsConstraint:
 
     def __init__(self, priors: HardPriors, timer: Any = None) -> None:
         self.priors = priors
-        self._timer = timer
+        self._valid = priors.valid if timer is None else timer.wrap("priors", priors.valid)
         self._tables = priors.kernel_tables()
         self._J = priors.model.kin.parents.shape[0]
 
     def __call__(self, poses: np.ndarray) -> np.ndarray:
-        if self._timer is None:
-            return self.priors.valid(poses)
-        with self._timer.part("priors"):
-            return self.priors.valid(poses)
+        return self._valid(poses)
 
     def constricted_moves(self, v: np.ndarray, x: np.ndarray, pbest: np.ndarray, gbest: np.ndarray, c: float,
                           chi: float, vmax: np.ndarray, lower: np.ndarray, upper: np.ndarray, max_redraws: int,
@@ -95,13 +92,12 @@ def _constricted_moves(v, x, pbest, gbest, c, chi, vmax, lower, upper, max_redra
                 m += 1
         if m == 0:
             break
-        redrawn = rows[:m].copy()
         e = rng.random((2, m, d))  # the invalid rows only, in row order
         xr = np.empty((m, d))
         vr = np.empty((m, d))
-        move_rows_kernel(v, x, pbest, gbest, redrawn, e, c, c, chi, vmax, xr, vr)
+        move_rows_kernel(v, x, pbest, gbest, rows[:m], e, c, c, chi, vmax, xr, vr)
         for q in range(m):
-            i = redrawn[q]
+            i = rows[q]
             x_new[i] = xr[q]
             v_new[i] = vr[q]
             valid[i] = _feasible(x_new[i], lower, upper, T, tables)
