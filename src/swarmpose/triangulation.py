@@ -18,7 +18,7 @@ import numpy as np
 from swarmpose.camera import Camera
 from swarmpose.errors import ShapeError
 
-__all__ = ["triangulate", "reproject", "residuals", "normalised_points"]
+__all__ = ["triangulate", "reproject", "residuals", "normalised_points", "relabel_pairs", "MAX_EXHAUSTIVE_VIEWS"]
 
 
 def _check(cameras: Sequence[Camera], uv: np.ndarray) -> np.ndarray:
@@ -99,3 +99,75 @@ def residuals(cameras: Sequence[Camera], points: np.ndarray, uv: np.ndarray) -> 
     """
     uv = _check(cameras, uv)
     return np.linalg.norm(reproject(cameras, points) - uv, axis=-1)
+
+
+#: Up to this many views :func:`relabel_pairs` tries every labelling of a pair (2^C); with more, one view at a time.
+MAX_EXHAUSTIVE_VIEWS = 8
+
+
+def _pair_cost(cameras: Sequence[Camera], uv: np.ndarray, w: np.ndarray, threshold: float) -> np.ndarray:
+    """``sum_c,j w min(r, threshold)^2`` of the pair ``uv (..., C, 2, 2)`` triangulated with weights ``w``."""
+    pts = triangulate(cameras, uv, w)
+    r = residuals(cameras, pts, uv)
+    r = np.where(np.isfinite(r), np.minimum(r, threshold), threshold)
+    cost = (w * r * r).sum(axis=(-2, -1))
+    return np.where(np.isfinite(pts).all(axis=(-2, -1)), cost, np.inf)
+
+
+def _labelled(exchanged: np.ndarray, uv: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A pair's pixels ``(..., C, 2, 2)`` and weights ``(..., C, 2)`` with the views ``exchanged (..., C)`` swapped."""
+    return (np.where(exchanged[..., None, None], uv[..., ::-1, :], uv),
+            np.where(exchanged[..., None], w[..., ::-1], w))
+
+
+def relabel_pairs(cameras: Sequence[Camera], uv: np.ndarray, weights: np.ndarray,
+                  pairs: Sequence[tuple[int, int]], threshold: float,
+                  min_views: int = 3) -> tuple[np.ndarray, np.ndarray]:
+    """Each view's two detections of each pair ``(a, b)`` (a left and a right joint) exchanged where that makes
+    the views agree: per pair and frame, the labelling of the views whose triangulation has the smallest weighted,
+    truncated (at ``threshold`` px) squared reprojection residual; of a labelling and its opposite (which give
+    the same two points, exchanged) the one that keeps the larger confidence as detected. A detector that
+    swaps one view's ankles then no longer pulls both triangulated ankles off.
+
+    Only where at least ``min_views`` views see both joints of the pair (weight > 0): two views agree about as
+    well either way when the two joints lie near the same epipolar line (two wrists at one height), and on the
+    shared clips with MediaPipe's keypoints relabelling from two views made some frames worse.
+
+    ``uv (..., C, J, 2)`` px, ``weights (..., C, J)``; returns both relabelled. Up to
+    :data:`MAX_EXHAUSTIVE_VIEWS` views every labelling is tried, beyond that one view at a time, as long as
+    exchanging one lowers the residual."""
+    uv = _check(cameras, uv).copy()
+    w = np.asarray(weights, dtype=np.float64).copy()
+    C = len(cameras)
+    for a, b in pairs:
+        pu = uv[..., [a, b], :]  # (..., C, 2, 2)
+        pw = w[..., [a, b]]
+        shape = pu.shape[:-3]
+        if C <= MAX_EXHAUSTIVE_VIEWS:
+            grid = np.array(np.meshgrid(*[[False, True]] * C, indexing="ij")).reshape(C, -1).T  # (2^C, C)
+            grid = grid[~grid[:, 0]]  # a labelling and its opposite fit alike: view 0 as detected, then choose
+            trials = np.broadcast_to(grid.reshape((len(grid),) + (1,) * len(shape) + (C,)), (len(grid),) + shape + (C,))
+            cost = _pair_cost(cameras, *_labelled(trials, pu, pw), threshold)  # (S, ...)
+            best = np.take_along_axis(trials, np.argmin(cost, axis=0)[None, ..., None], axis=0)[0]
+        else:
+            best = np.zeros(shape + (C,), dtype=bool)
+            cost = _pair_cost(cameras, *_labelled(best, pu, pw), threshold)
+            for _ in range(C):
+                changed = False
+                for c in range(C):
+                    trial = best.copy()
+                    trial[..., c] = ~trial[..., c]
+                    tc = _pair_cost(cameras, *_labelled(trial, pu, pw), threshold)
+                    better = tc < cost
+                    if better.any():
+                        best = np.where(better[..., None], trial, best)
+                        cost = np.where(better, tc, cost)
+                        changed = True
+                if not changed:
+                    break
+        # of the labelling and its opposite, the one that keeps the larger confidence as detected
+        conf = pw.sum(axis=-1)  # (..., C)
+        best = best ^ ((conf * best).sum(axis=-1) > (conf * ~best).sum(axis=-1))[..., None]
+        best &= (((pw > 0).all(axis=-1)).sum(axis=-1) >= min_views)[..., None]
+        uv[..., [a, b], :], w[..., [a, b]] = _labelled(best, pu, pw)
+    return uv, w

@@ -133,3 +133,22 @@ def test_the_elbow_fraction_of_straight_arms_and_its_limits():
     assert elbow_fraction(model, detector_elbows(straight, 0.9)) == pytest.approx(0.9)
     assert elbow_fraction(model, detector_elbows(straight, 0.4)) == ELBOW_FRACTION_RANGE[0]
     assert elbow_fraction(model, np.full((3, 15, 3), np.nan)) == 1.0
+
+
+def test_triangulated_keypoints_put_back_one_views_swapped_ankles(short_sequence: Path, tmp_path: Path):
+    """A detector that exchanged the ankles in one view (and the wrists in another, on one frame): the
+    triangulated joints are the truth's all the same."""
+    from swarmpose.joints import JOINT_INDEX
+    from swarmpose.track.start import keypoint_joints
+
+    def swapped(cameras, truth: np.ndarray) -> np.ndarray:
+        uv = reproject(cameras, truth)
+        la, ra = JOINT_INDEX["l_ankle"], JOINT_INDEX["r_ankle"]
+        uv[:, 1, [la, ra]] = uv[:, 1, [ra, la]]
+        lw, rw = JOINT_INDEX["l_wrist"], JOINT_INDEX["r_wrist"]
+        uv[0, 3, [lw, rw]] = uv[0, 3, [rw, lw]]
+        return uv
+
+    with open_sequence(_with_keypoints(short_sequence, tmp_path / "walk", swapped)) as seq:
+        frames = np.arange(seq.n_frames)
+        np.testing.assert_allclose(keypoint_joints(seq, frames), np.asarray(seq.gt_joints)[frames], atol=0.5)

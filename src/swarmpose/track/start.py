@@ -16,8 +16,8 @@ import numpy as np
 
 from swarmpose.detection.joints import MIN_CONFIDENCE
 from swarmpose.errors import ConfigError, DataError
-from swarmpose.joints import BONES15, JOINT_INDEX, JOINTS15
-from swarmpose.triangulation import residuals, triangulate
+from swarmpose.joints import BONES15, JOINT_INDEX, JOINTS15, SWAP15
+from swarmpose.triangulation import relabel_pairs, residuals, triangulate
 
 __all__ = ["keypoint_joints", "keypoint_ik", "keypoint_start", "tracked_views", "has_keypoints", "fill_gaps",
            "bone_lengths", "elbow_fraction", "ELBOW_FRACTION_RANGE", "TRUNK_JOINTS",
@@ -32,9 +32,17 @@ def has_keypoints(seq: Any) -> bool:
     return md is not None and md.confidence is not None and tuple(md.names) == JOINTS15
 
 
+#: The 15 joints' left/right pairs (shoulders, elbows, wrists, hips, knees, ankles), as index pairs.
+LEFT_RIGHT_PAIRS = tuple((j, int(SWAP15[j])) for j in range(len(JOINTS15)) if j < SWAP15[j])
+
+
 def keypoint_joints(seq: Any, frames: np.ndarray, *, views: list[int] | None = None,
                     threshold: float | None = None) -> np.ndarray:
     """World joints ``(T, 15, 3)`` mm triangulated from the keypoints of ``frames`` (NaN where < 2 views).
+
+    Each view's left and right detections of a joint are first exchanged where that makes the views agree
+    (:func:`swarmpose.triangulation.relabel_pairs`, where at least three views see both); then a weighted DLT,
+    and again without the observations whose residual exceeds ``threshold``.
 
     Parameters
     ----------
@@ -54,8 +62,9 @@ def keypoint_joints(seq: Any, frames: np.ndarray, *, views: list[int] | None = N
     cams = [seq.cameras[c] for c in v]
     kp = dense[idx][:, v]
     w = np.where(conf[idx][:, v] >= MIN_CONFIDENCE, conf[idx][:, v], 0.0)
-    pts = triangulate(cams, kp, w)
     thr = 0.025 * float(np.hypot(*seq.image_size)) if threshold is None else float(threshold)
+    kp, w = relabel_pairs(cams, kp, w, LEFT_RIGHT_PAIRS, thr)
+    pts = triangulate(cams, kp, w)
     r = residuals(cams, pts, kp)
     w2 = np.where(np.isfinite(r) & (r < thr), w, 0.0)
     again = triangulate(cams, kp, w2)
