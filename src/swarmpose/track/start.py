@@ -37,7 +37,7 @@ LEFT_RIGHT_PAIRS = tuple((j, int(SWAP15[j])) for j in range(len(JOINTS15)) if j 
 
 
 def keypoint_joints(seq: Any, frames: np.ndarray, *, views: list[int] | None = None,
-                    threshold: float | None = None) -> np.ndarray:
+                    threshold: float | None = None, relabel: bool = True) -> np.ndarray:
     """World joints ``(T, 15, 3)`` mm triangulated from the keypoints of ``frames`` (NaN where < 2 views).
 
     Each view's left and right detections of a joint are first exchanged where that makes the views agree
@@ -55,6 +55,8 @@ def keypoint_joints(seq: Any, frames: np.ndarray, *, views: list[int] | None = N
     threshold : float, optional
         Largest residual (px of the sequence) of an observation kept in the second pass; default 2.5 % of
         the image diagonal.
+    relabel : bool
+        Exchange left and right detections where that makes the views agree (default); False: as detected.
     """
     dense, conf = seq.marker_data.to_dense()
     idx = np.asarray(frames, dtype=np.int64)
@@ -63,7 +65,8 @@ def keypoint_joints(seq: Any, frames: np.ndarray, *, views: list[int] | None = N
     kp = dense[idx][:, v]
     w = np.where(conf[idx][:, v] >= MIN_CONFIDENCE, conf[idx][:, v], 0.0)
     thr = 0.025 * float(np.hypot(*seq.image_size)) if threshold is None else float(threshold)
-    kp, w = relabel_pairs(cams, kp, w, LEFT_RIGHT_PAIRS, thr)
+    if relabel:
+        kp, w = relabel_pairs(cams, kp, w, LEFT_RIGHT_PAIRS, thr)
     pts = triangulate(cams, kp, w)
     r = residuals(cams, pts, kp)
     w2 = np.where(np.isfinite(r) & (r < thr), w, 0.0)
