@@ -120,3 +120,30 @@ def test_feasibility_equals_the_plain_bounds_test_and_asks_only_rows_inside():
 def test_rng_must_be_a_generator():
     with pytest.raises(TypeError, match="Generator"):
         ConstrictedPSO(np.ones(2), np.ones(2), 3, 3, 0)  # type: ignore[arg-type]
+
+
+def test_a_staged_search_checks_its_scores_once_and_keeps_the_rule():
+    """A staged search hands its stage's optimiser the scores it checked: the score rule and the protocol
+    guards hold through it (NaN invalid, +inf and wrong shapes refused without using up the ask), and the stage
+    counts the evaluations."""
+    from swarmpose.optim import StagedPSO
+    from swarmpose.optim.staged import Stage
+
+    stages = [Stage("a", np.array([True, True, False]), np.ones(3), 3, 2), Stage("b", np.ones(3, bool), np.ones(3), 4, 2)]
+    opt = StagedPSO(np.ones(3), np.ones(3), stages, np.random.default_rng(0))
+    x = opt.ask()
+    with pytest.raises(ValueError, match=r"\+inf"):
+        opt.tell(np.array([0.0, np.inf, 1.0]))
+    with pytest.raises(ShapeError):
+        opt.tell(np.zeros(4))
+    opt.tell(np.array([np.nan, -sphere(x[1:2])[0], -sphere(x[2:3])[0]]))
+    assert opt.current.evaluations == 3 and opt.evaluations == 3
+    assert opt.current.personal_best[1][0] == -np.inf
+    with pytest.raises(RuntimeError, match="without a preceding ask"):  # the stage's own guards
+        opt.current._tell_checked(np.zeros(3))
+    opt.ask()
+    with pytest.raises(RuntimeError, match="3 candidates asked, 2 scores told"):
+        opt.current._tell_checked(np.zeros(2))
+    opt.tell(np.zeros(3))
+    result = optimize(opt, lambda p: -sphere(p))
+    assert result.evaluations == 3 * 2 + 4 * 2 and opt.done

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy import stats
 
 from swarmpose.optim import operators as op
@@ -186,3 +188,20 @@ def test_redraw_invalid_redraws_only_violating_rows_at_most_max():
     assert len(calls) == 11  # first draw + 10 re-draws
     assert valid.tolist() == [True, True, False, True]
     assert x[:, 0].tolist() == [1.0, 3.0, 11.0, 2.0]
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.integers(1, 12), st.integers(1, 5), st.integers(0, 2 ** 32 - 1))
+def test_compiled_tell_is_the_plain_update_and_global_best(n, d, seed):
+    """``tell_personal_best`` = ``update_personal_best`` of the valid rows' scores, then ``global_best``:
+    the same bests bit for bit, ties (first index) and ``-inf`` rows included."""
+    rng = np.random.default_rng(seed)
+    pool = np.array([-np.inf, -1.0, 0.0, 0.5, 2.0])  # few values: many ties
+    px, ps = rng.normal(size=(n, d)), rng.choice(pool, n)
+    x, s, valid = rng.normal(size=(n, d)), rng.choice(pool, n), rng.random(n) < 0.7
+    want_x, want_s = op.update_personal_best(px, ps, x, np.where(valid, s, -np.inf))
+    got_x, got_s = px.copy(), ps.copy()
+    g = op.tell_personal_best(valid, s, x, got_x, got_s)
+    np.testing.assert_array_equal(got_x, want_x)
+    np.testing.assert_array_equal(got_s, want_s)
+    assert g == op.global_best(want_s)

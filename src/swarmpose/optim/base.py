@@ -137,6 +137,8 @@ def check_scores(scores: Any, n: int) -> np.ndarray:
     s = np.array(scores, dtype=np.float64, copy=True)
     if s.shape != (n,):
         raise ShapeError(f"scores must have shape ({n},) (one per asked candidate), got {s.shape}")
+    if np.isfinite(s).all():  # the usual case: one pass
+        return s
     if np.any(s == np.inf):
         raise ValueError("scores contain +inf; a fitness must return finite values (NaN/-inf = invalid)")
     s[np.isnan(s)] = -np.inf
@@ -264,10 +266,18 @@ class Optimizer(abc.ABC):
         """
         if self._pending is None:
             raise RuntimeError("tell() without a preceding ask() (or told twice)")
-        s = check_scores(scores, self._pending)
+        self._tell_checked(check_scores(scores, self._pending))
+
+    def _tell_checked(self, scores: np.ndarray) -> None:
+        """:meth:`tell` of scores already through :func:`check_scores` for this optimiser's last ask (a staged
+        search hands its stage's optimiser the scores it checked, without checking them twice)."""
+        if self._pending is None:
+            raise RuntimeError("tell() without a preceding ask() (or told twice)")
+        if self._pending != scores.shape[0]:
+            raise RuntimeError(f"{self._pending} candidates asked, {scores.shape[0]} scores told")
         self._pending = None
-        self._evaluations += s.shape[0]
-        self._tell(s)
+        self._evaluations += scores.shape[0]
+        self._tell(scores)
 
     @property
     def evaluations(self) -> int:

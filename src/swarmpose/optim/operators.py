@@ -28,6 +28,7 @@ __all__ = [
     "adaptive_diffusion",
     "annealing_weights",
     "best_or_start",
+    "tell_personal_best",
     "clamp_velocity",
     "constricted_move",
     "constricted_velocity",
@@ -230,6 +231,23 @@ def update_personal_best(
     """
     better = s > pbest_s
     return np.where(better[:, None], x, pbest_x), np.where(better, s, pbest_s)
+
+
+@nb.njit(cache=True, nogil=True)
+def tell_personal_best(valid, scores, x, pbest_x, pbest_s):
+    """:func:`update_personal_best` of the valid rows' scores (an invalid row scores ``-inf``) in place, then
+    :func:`global_best`: one compiled pass; returns the global best's index (the first on ties)."""
+    n, d = x.shape
+    g = 0
+    for i in range(n):
+        s = scores[i] if valid[i] else -np.inf
+        if s > pbest_s[i]:
+            pbest_s[i] = s
+            for j in range(d):
+                pbest_x[i, j] = x[i, j]
+        if pbest_s[i] > pbest_s[g]:
+            g = i
+    return g
 
 
 def global_best(pbest_s: np.ndarray) -> int:

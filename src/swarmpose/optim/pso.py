@@ -60,7 +60,7 @@ from .operators import (
     redraw_invalid,
     sample_normal,
     sample_uniform,
-    update_personal_best,
+    tell_personal_best,
 )
 from .staged import StagedSwarm
 
@@ -247,12 +247,12 @@ class ConstrictedPSO(Optimizer):
         return x
 
     def _tell(self, scores: np.ndarray) -> None:
-        s = np.where(self._valid, scores, -np.inf)  # an invalid pose never becomes a best
         if self._k == 0:
+            s = np.where(self._valid, scores, -np.inf)  # an invalid pose never becomes a best
             self._pbest_x, self._pbest_s = self._x.copy(), s
-        else:
-            self._pbest_x, self._pbest_s = update_personal_best(self._pbest_x, self._pbest_s, self._x, s)
-        self._g = global_best(self._pbest_s)
+            self._g = global_best(self._pbest_s)
+        else:  # update_personal_best and global_best in one compiled pass, in place
+            self._g = tell_personal_best(self._valid, scores, self._x, self._pbest_x, self._pbest_s)
         self._k += 1
 
 

@@ -336,5 +336,5 @@ class Chain(Optimizer):
         return self._current.ask()
 
     def _tell(self, scores: np.ndarray) -> None:
-        self._current.tell(scores)
+        self._current._tell_checked(scores)  # checked once, by this search's tell
         self._advance()

@@ -207,7 +207,7 @@ class StagedSearch(Optimizer):
     def _tell(self, scores: np.ndarray) -> None:
         if self._current is None:  # pragma: no cover - Optimizer.tell guards the protocol
             raise RuntimeError("tell() before the first ask()")
-        self._current.tell(scores)
+        self._current._tell_checked(scores)  # checked once, by this search's tell
 
 
 class StagedSwarm(StagedSearch):
