@@ -678,9 +678,14 @@ def run_tracker(
             seq.close()
             raise
 
+    # an image fitness's per-frame preparation (the silhouettes' row prefix sums) runs on the prefetch thread too,
+    # unless the observation is handed to `observe` first
+    prepare = getattr(untimed_fitness, "prepare", None) if observe is None and cfg.fitness_kind in IMAGE_FITNESS else None
+
     def load(i: int) -> Any:  # on the prefetch thread: frame i + 1 is read while frame i is tracked
-        return frame_observation(seq, int(setup.frame_indices[i]), cfg.fitness_kind, cfg.downsample, backgrounds,
-                                 feature_options, views, keypoints, features_store)
+        obs = frame_observation(seq, int(setup.frame_indices[i]), cfg.fitness_kind, cfg.downsample, backgrounds,
+                                feature_options, views, keypoints, features_store)
+        return obs if prepare is None else prepare(obs)
 
     prefetch = Prefetcher(load, T if stop_after is None else min(T, stop_after))
     search = FrameSearch(model=model, algo=algo, fitness=fitness, motion=motion, motion_mask=motion_mask,
