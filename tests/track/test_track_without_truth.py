@@ -7,6 +7,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from swarmpose.errors import ConfigError
 from swarmpose.fitness.keypoints import (
@@ -265,3 +267,36 @@ def test_fill_gaps_takes_plausible_bones_from_the_nearest_frames():
     trunk[:, J["l_hip"]] = np.nan
     with pytest.raises(Exception, match="too few views see l_hip"):
         keypoint_start(model, trunk, "seq", 0)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 2 ** 32 - 1), st.sampled_from(sorted(SWAPS)), st.sampled_from([(0.3, 1.0), (0.1, 0.5), (0.05, 0.0)]),
+       st.integers(1, 9), st.integers(1, 5))
+def test_the_compiled_keypoint_cost_is_the_plain_loops(seed, swaps, tp, n, n_views):
+    """The compiled term against :func:`keypoint_cost_reference` (plain loops): random cameras with distortion,
+    detections missing or at confidence 0, joints behind a camera, every labelling set, threshold and power; and a
+    fitness's packed camera tables give the same numbers as packing them here."""
+    from swarmpose.camera import Camera
+    from swarmpose.render.project import camera_tables
+
+    rng = np.random.default_rng(seed)
+    cams = [Camera.look_at(f"c{i}", [3000 * np.cos(a), 3000 * np.sin(a), 1500 + 300 * rng.normal()], [0, 0, 1000],
+                           dist=tuple(rng.normal(0, [0.05, 0.01, 0.002, 0.002, 0.001])))
+            for i, a in enumerate(rng.uniform(0, 2 * np.pi, n_views))]
+    truth = rng.normal(0, 300, (15, 3)) + [0, 0, 1000]
+    kp = reproject(cams, truth) + rng.normal(0, 5, (n_views, 15, 2))
+    kp[rng.random((n_views, 15)) < 0.1] = np.nan
+    conf = rng.uniform(0.0, 1.0, (n_views, 15))
+    conf[rng.random((n_views, 15)) < 0.1] = 0.0
+    poses = truth[None] + rng.normal(0, 80, (n, 15, 3))
+    if n > 1:
+        poses[-1, 3] = [3000 * np.cos(0.0), 0.0, 1500]  # a joint at or behind some camera
+    threshold, power = tp
+    a = joint_weights("elbow:0.5+l_wrist:2") if seed % 2 else None
+    fast = keypoint_cost(poses, cams, kp, conf, weights=a, elbow=0.9, swaps=swaps, threshold=threshold, power=power)
+    plain = keypoint_cost_reference(poses, cams, kp, conf, weights=a, elbow=0.9, swaps=swaps, threshold=threshold,
+                                    power=power)
+    np.testing.assert_allclose(fast, plain, rtol=1e-9, atol=1e-12)
+    packed = keypoint_cost(poses, cams, kp, conf, weights=a, elbow=0.9, swaps=swaps, threshold=threshold,
+                           power=power, tables=camera_tables(cams)[:3])
+    np.testing.assert_array_equal(packed, fast)

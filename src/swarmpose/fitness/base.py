@@ -11,8 +11,13 @@ import numpy as np
 
 from swarmpose.detection.joints import MIN_CONFIDENCE as KEYPOINT_THRESHOLD
 from swarmpose.errors import ConfigError, ShapeError, option_items
+from swarmpose.fitness._rowsum import row_sum
 from swarmpose.fitness.keypoints import SCALE as KEYPOINT_SCALE
 from swarmpose.fitness.keypoints import SWAPS, joint_weights
+
+#: Hash of the kernel sources this module's cached kernels inline (fitness/_rowsum.py); tests/test_numba_cache.py
+#: says when it must change.
+INLINED_SOURCES_SHA1 = "7c39a6f7705c545b"
 
 __all__ = ["Fitness", "ImageOptions", "parse_image_options", "TERMS", "silhouette_score", "edge_score",
            "thesis_fitness", "deutscher_reid_log_weight", "check_scores", "parse_fitness_options"]
@@ -227,34 +232,6 @@ def thesis_fitness(Y: np.ndarray, P: np.ndarray, O: np.ndarray, edge_sum: np.nda
     return f
 
 
-@nb.njit(cache=True, nogil=True, inline="always")
-def _view_sum(row):
-    """``row.sum()`` as numpy adds a row of up to 128 values (pairwise: 8 running sums from 8 values on)."""
-    n = row.shape[0]
-    if n < 8:
-        r = -0.0
-        for j in range(n):
-            r += row[j]
-        return r
-    r0, r1, r2, r3, r4, r5, r6, r7 = row[0], row[1], row[2], row[3], row[4], row[5], row[6], row[7]
-    j = 8
-    while j < n - n % 8:
-        r0 += row[j]
-        r1 += row[j + 1]
-        r2 += row[j + 2]
-        r3 += row[j + 3]
-        r4 += row[j + 4]
-        r5 += row[j + 5]
-        r6 += row[j + 6]
-        r7 += row[j + 7]
-        j += 8
-    r = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
-    while j < n:
-        r += row[j]
-        j += 1
-    return r
-
-
 @nb.njit(cache=True, nogil=True)
 def _thesis_kernel(Y, P, O, edge_sum, count, a, silhouette, edge, out):
     """:func:`thesis_fitness` into ``out``; False when some ``Y`` exceeds ``P`` or ``O``."""
@@ -274,9 +251,9 @@ def _thesis_kernel(Y, P, O, edge_sum, count, a, silhouette, edge, out):
             fe[c] = edge_sum[n, c] / max(count[n, c], 1.0)
         f = 0.0
         if silhouette:
-            f += _view_sum(fs) / C
+            f += row_sum(fs) / C
         if edge:
-            f += _view_sum(fe) / C
+            f += row_sum(fe) / C
         out[n] = f
     return True
 

@@ -192,7 +192,8 @@ class ImageFitness:
             scores -= opts.keypoints * keypoint_cost(self.model.joints15(p), prepared.cameras, f.keypoints,
                                                      f.keypoint_confidence, weights=a, elbow=opts.keypoint_elbow,
                                                      swaps=opts.keypoint_swaps, scale=opts.keypoint_scale,
-                                                     threshold=opts.keypoint_threshold, power=opts.keypoint_power)
+                                                     threshold=opts.keypoint_threshold, power=opts.keypoint_power,
+                                                     tables=(prepared.R, prepared.t, prepared.cam))
         if bad is not None:
             scores[bad] = np.nan  # the optimisers' "invalid" (shared/design.md; optim.base score rule)
         return scores

@@ -55,7 +55,7 @@ SWAPS = {"body": (tuple(range(len(JOINTS15))), tuple(int(j) for j in SWAP)),
                    _swap_of(("shoulder", "elbow", "wrist")), _swap_of(("hip", "knee", "ankle"))),
          "ends": (tuple(range(len(JOINTS15))), tuple(int(j) for j in SWAP),
                   _swap_of(("elbow", "wrist")), _swap_of(("knee", "ankle")))}
-_SWAP_INDEX = {name: [np.array(p) for p in perms] for name, perms in SWAPS.items()}  # for the batched cost
+_PERMS = {name: np.array(perms, dtype=np.int64) for name, perms in SWAPS.items()}  # (L, 15), for the kernel
 
 
 @lru_cache(maxsize=32)  # read once per text, not on every evaluation of the fitness
@@ -112,8 +112,13 @@ def detector_elbows(joints: np.ndarray, fraction: float) -> np.ndarray:
 def keypoint_cost(joints: np.ndarray, cameras: Sequence[Camera], keypoints: np.ndarray,
                   confidence: np.ndarray, scale: float = SCALE,
                   weights: Sequence[float] | None = None, elbow: float = 1.0, swaps: str = "body",
-                  threshold: float = MIN_CONFIDENCE, power: float = 1.0) -> np.ndarray:
+                  threshold: float = MIN_CONFIDENCE, power: float = 1.0,
+                  tables: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """``-K``: the robust keypoint cost ``(N,)`` in ``[0, 1]`` of model joints ``(N, 15, 3)`` (mm).
+
+    One compiled pass over the poses, views and labellings (:mod:`swarmpose.fitness._keypoint_kernel`); equal to
+    :func:`keypoint_cost_reference` to rounding (the projection's products are added in another order than
+    numpy's matrix product adds them).
 
     Parameters
     ----------
@@ -131,35 +136,21 @@ def keypoint_cost(joints: np.ndarray, cameras: Sequence[Camera], keypoints: np.n
     threshold, power : float
         A detection counts from confidence ``threshold`` on (default :data:`MIN_CONFIDENCE`), with weight
         ``confidence ** power`` (default 1: its confidence; 0: every counted detection alike).
+    tables : (R, t, cam), optional
+        The cameras packed as :func:`swarmpose.render.project.camera_tables` packs them (an image fitness has
+        them per frame); default: packed here.
     """
-    J = detector_elbows(np.asarray(joints, dtype=np.float64), elbow)
-    perms = _SWAP_INDEX[swaps]
+    from swarmpose.fitness._keypoint_kernel import keypoint_kernel
+    from swarmpose.render.project import camera_tables
+
+    J = np.ascontiguousarray(detector_elbows(np.asarray(joints, dtype=np.float64), elbow))
+    R, t, cam = camera_tables(cameras)[:3] if tables is None else tables
     s = float(scale) * float(np.hypot(cameras[0].width, cameras[0].height))
-    a = None if weights is None else np.asarray(weights, dtype=np.float64)
-    total = np.zeros(J.shape[0])
-    views = 0
-    for c, cam in enumerate(cameras):
-        kp = np.asarray(keypoints[c], dtype=np.float64)
-        w = _weights(np.asarray(confidence[c], dtype=np.float64), kp, threshold, power)
-        # per labelling, model joint j's weight a_j times its detection's confidence
-        labellings = [(perm, w[perm] if a is None else w[perm] * a) for perm in perms]
-        if all(ww.sum() <= 0 for _, ww in labellings):
-            continue
-        uv, z = cam.project_with_depth(J)  # (N, 15, 2)
-        behind = ~(z > 0).all(axis=1)
-        k = np.nan_to_num(kp)
-        costs = []
-        for perm, ww in labellings:
-            if ww.sum() <= 0:
-                costs.append(np.full(J.shape[0], np.inf))
-                continue
-            e2 = ((uv - k[perm]) ** 2).sum(axis=-1)  # (N, 15)
-            rho = e2 / (e2 + s * s)
-            costs.append(np.nansum(rho * ww, axis=1) / ww.sum())
-        view = np.min(costs, axis=0)
-        total += np.where(behind | ~np.isfinite(view), 1.0, view)
-        views += 1
-    return total / views if views else total
+    a = np.ones(len(JOINTS15)) if weights is None else np.asarray(weights, dtype=np.float64)
+    out = np.empty(J.shape[0])
+    keypoint_kernel(J, R, t, cam, np.asarray(keypoints, dtype=np.float64), np.asarray(confidence, dtype=np.float64),
+                    _PERMS[swaps], a, float(threshold), float(power), s * s, out)
+    return out
 
 
 def keypoint_cost_reference(joints: np.ndarray, cameras: Sequence[Camera], keypoints: np.ndarray,
