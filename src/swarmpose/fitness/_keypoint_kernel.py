@@ -34,7 +34,6 @@ def keypoint_kernel(J, R, t, cam, kp, conf, perms, a, threshold, power, s2, out)
     u = np.empty(M)
     v = np.empty(M)
     term = np.empty(M)
-    k = np.empty((M, 2))
     for n in range(N):
         out[n] = 0.0
     views = 0
@@ -42,9 +41,7 @@ def keypoint_kernel(J, R, t, cam, kp, conf, perms, a, threshold, power, s2, out)
         for j in range(M):
             x, y, f = kp[c, j, 0], kp[c, j, 1], conf[c, j]
             finite = math.isfinite(x) and math.isfinite(y)
-            w[j] = f ** power if finite and f >= threshold and f > 0 else 0.0
-            k[j, 0] = x if math.isfinite(x) else (0.0 if math.isnan(x) else (1.7976931348623157e308 if x > 0 else -1.7976931348623157e308))
-            k[j, 1] = y if math.isfinite(y) else (0.0 if math.isnan(y) else (1.7976931348623157e308 if y > 0 else -1.7976931348623157e308))
+            w[j] = f ** power if finite and f >= threshold and f > 0 else 0.0  # an absent detection weighs 0
         counted = False
         for q in range(L):
             for j in range(M):
@@ -83,11 +80,11 @@ def keypoint_kernel(J, R, t, cam, kp, conf, perms, a, threshold, power, s2, out)
                 if wsum[q] <= 0:
                     continue
                 for j in range(M):
-                    dx = u[j] - k[perms[q, j], 0]
-                    dy = v[j] - k[perms[q, j], 1]
+                    dx = u[j] - kp[c, perms[q, j], 0]
+                    dy = v[j] - kp[c, perms[q, j], 1]
                     e2 = dx * dx + dy * dy
                     rho = e2 / (e2 + s2) * ww[q, j]
-                    term[j] = 0.0 if math.isnan(rho) else rho  # nansum
+                    term[j] = 0.0 if math.isnan(rho) else rho  # nansum; an absent detection's term is NaN x 0
                 cost = row_sum(term) / wsum[q]
                 if math.isnan(cost):
                     nan = True

@@ -86,14 +86,6 @@ def joint_weights(spec: str) -> tuple[float, ...]:
     return tuple(a)
 
 
-def _weights(confidence: np.ndarray, keypoints: np.ndarray, threshold: float = MIN_CONFIDENCE,
-             power: float = 1.0) -> np.ndarray:
-    ok = np.isfinite(keypoints).all(axis=-1) & (confidence >= threshold) & (confidence > 0)
-    w = np.zeros(confidence.shape)
-    w[ok] = confidence[ok] ** power
-    return w
-
-
 def detector_elbows(joints: np.ndarray, fraction: float) -> np.ndarray:
     """``joints (..., 15, 3)`` with each elbow moved to ``fraction`` of the way from its shoulder (1: unchanged).
 
