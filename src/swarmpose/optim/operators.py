@@ -28,7 +28,6 @@ __all__ = [
     "adaptive_diffusion",
     "annealing_weights",
     "best_or_start",
-    "tell_personal_best",
     "clamp_velocity",
     "constricted_move",
     "constricted_velocity",
@@ -46,6 +45,7 @@ __all__ = [
     "sample_normal",
     "sample_uniform",
     "survival_rate",
+    "tell_personal_best",
     "update_personal_best",
     "weighted_mean",
 ]
