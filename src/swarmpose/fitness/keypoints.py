@@ -130,13 +130,15 @@ def keypoint_cost(joints: np.ndarray, cameras: Sequence[Camera], keypoints: np.n
         ``confidence ** power`` (default 1: its confidence; 0: every counted detection alike).
     tables : (R, t, cam), optional
         The cameras packed as :func:`swarmpose.render.project.camera_tables` packs them (an image fitness has
-        them per frame); default: packed here.
+        them per frame; the kernel reads ``cam``'s first 10 columns); default: packed here.
     """
     from swarmpose.fitness._keypoint_kernel import keypoint_kernel
-    from swarmpose.render.project import camera_tables
 
     J = np.ascontiguousarray(detector_elbows(np.asarray(joints, dtype=np.float64), elbow))
-    R, t, cam = camera_tables(cameras)[:3] if tables is None else tables
+    if tables is None:  # the kernel reads R, t and the intrinsics and distortion (cameras of any size)
+        tables = (np.stack([c.R for c in cameras]), np.stack([c.t for c in cameras]),
+                  np.array([[c.fx, c.fy, c.cx, c.cy, c.skew, *c.dist] for c in cameras], dtype=np.float64))
+    R, t, cam = tables
     s = float(scale) * float(np.hypot(cameras[0].width, cameras[0].height))
     a = np.ones(len(JOINTS15)) if weights is None else np.asarray(weights, dtype=np.float64)
     out = np.empty(J.shape[0])
