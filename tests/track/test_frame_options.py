@@ -73,12 +73,14 @@ def test_the_default_weighs_keypoints_where_the_sequence_has_them(short_sequence
 
 
 def test_the_keypoint_terms_scale_and_swaps_reach_the_searches(keypoint_sequence: Path):
-    """``keypoint_scale`` at the term's own SCALE, ``keypoint_swaps=body``, ``keypoint_threshold=0.3`` and
-    ``keypoint_power=1`` track pose for pose as without them; another scale, threshold or power changes the track."""
+    """``keypoint_scale`` at the term's own SCALE, ``keypoint_swaps=body``, ``keypoint_threshold=0.3``,
+    ``keypoint_power=1`` and ``keypoint_views=1`` track pose for pose as without them (and ``keypoint_views=4`` where
+    every view sees every joint); another scale, threshold or power changes the track."""
     default = _track(keypoint_sequence, "refined-heading")
     np.testing.assert_array_equal(default, _track(keypoint_sequence, "refined-heading",
                                                   options="keypoint_scale=0.02,keypoint_swaps=body,"
-                                                          "keypoint_threshold=0.3,keypoint_power=1"))
+                                                          "keypoint_threshold=0.3,keypoint_power=1,keypoint_views=1"))
+    np.testing.assert_array_equal(default, _track(keypoint_sequence, "refined-heading", options="keypoint_views=4"))
     assert not np.array_equal(default, _track(keypoint_sequence, "refined-heading", options="keypoint_scale=0.005"))
     assert not np.array_equal(default, _track(keypoint_sequence, "refined-heading",
                                               options="keypoint_threshold=0.05,keypoint_power=0"))
@@ -152,3 +154,37 @@ def test_triangulated_keypoints_put_back_one_views_swapped_ankles(short_sequence
     with open_sequence(_with_keypoints(short_sequence, tmp_path / "walk", swapped)) as seq:
         frames = np.arange(seq.n_frames)
         np.testing.assert_allclose(keypoint_joints(seq, frames), np.asarray(seq.gt_joints)[frames], atol=0.5)
+
+
+def test_miss_evidence_finds_a_moved_arm_and_the_evidence_for_the_truths(keypoint_sequence: Path, tmp_path: Path):
+    """``scripts/miss_evidence.py`` on a results folder whose run holds the IK poses with the left arm swung far
+    off: it finds the left wrist as a miss (nothing off the left arm), the truth's arm puts the wrist back within the IK
+    floor, and with keypoints at the truth every term scores the truth's arm higher."""
+    import importlib.util
+
+    from swarmpose.track.tracker import TrackConfig, prepare_track, run_tracker, write_config
+
+    spec = importlib.util.spec_from_file_location("miss_evidence", Path(__file__).parents[2] / "scripts" / "miss_evidence.py")
+    script = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(script)
+    out = tmp_path / "results"
+    setup = prepare_track(keypoint_sequence, TrackConfig(algo="refined-heading", max_frames=2), out)
+    write_config(out, setup, 1)
+    run_tracker(setup, 0, out)
+    model = setup.model
+    params = setup.ik_params.copy()
+    arm = model.group("left_arm")
+    params[:, arm] = np.clip(params[:, arm] + 1.2, model.lower[arm], model.upper[arm])
+    track = dict(np.load(out / "run_000" / "track.npz"))
+    track["params"] = params
+    np.savez(out / "run_000" / "track.npz", **track)
+    err = np.linalg.norm(model.joints15(params) - setup.gt_joints, axis=-1)
+    wrist = JOINTS15.index("l_wrist")
+    left_arm = [JOINTS15.index(j) for j in ("l_shoulder", "l_elbow", "l_wrist")]
+    assert (err[:, wrist] > 100).all() and (np.delete(err, left_arm, axis=1) < 100).all()
+    found = script.clip_evidence(out, 1, 100.0)
+    assert {r["joint"] for r in found["rows"]} <= {"l_wrist", "l_elbow"}
+    assert sum(r["joint"] == "l_wrist" for r in found["rows"]) == 2
+    assert all(r["truth_limb_error_mm"] < 10 for r in found["rows"])
+    for term in ("fitness", "silhouette", "image", "keypoints"):
+        assert found[term]["truth_higher"] == 1.0, term

@@ -18,6 +18,7 @@ from swarmpose.fitness.keypoints import (
     joint_weights,
     keypoint_cost,
     keypoint_cost_reference,
+    views_agreeing,
 )
 from swarmpose.io.sequence import MarkerData, MultiViewSequence, open_sequence, write_sequence
 from swarmpose.joints import JOINTS15
@@ -83,6 +84,35 @@ def test_keypoint_cost_matches_its_reference_and_is_robust():
     assert keypoint_cost(moved[None], cams, kp, low, threshold=0.1)[0] > 1e-3
     flat = keypoint_cost(moved[None], cams, kp, low, threshold=0.1, power=0.0)[0]
     assert flat > keypoint_cost(moved[None], cams, kp, low, threshold=0.1)[0]  # the elbows weigh as much as the rest
+
+
+def test_a_joint_one_view_alone_counts_is_left_out_with_keypoint_views_2():
+    """``keypoint_views=2``: a wrist only one view reports confidently (the others under the threshold) costs
+    nothing wherever the model puts it; seen by two views it counts; the option reaches the term through a
+    fitness's options, and a bad value is refused with its name."""
+    from swarmpose.camera import Camera
+    from swarmpose.fitness.base import ImageOptions, parse_image_options
+
+    cams = [Camera.look_at(f"c{i}", [3000 * np.cos(a), 3000 * np.sin(a), 1500], [0, 0, 1000])
+            for i, a in enumerate((0.2, 1.9, 3.5))]
+    truth = np.random.default_rng(2).normal(0, 300, (15, 3)) + [0, 0, 1000]
+    kp = reproject(cams, truth)
+    conf = np.full((3, 15), 0.9)
+    w = JOINTS15.index("l_wrist")
+    conf[1:, w] = 0.1  # only the first view counts the left wrist
+    moved = truth.copy()
+    moved[w] += [0, 0, 300]
+    assert keypoint_cost(moved[None], cams, kp, conf)[0] > 1e-3
+    assert keypoint_cost(moved[None], cams, kp, conf, min_views=2)[0] < 1e-12
+    np.testing.assert_array_equal(views_agreeing(kp, conf, 0.3, 2)[:, w], 0.0)
+    np.testing.assert_array_equal(np.delete(views_agreeing(kp, conf, 0.3, 2), w, axis=1), np.delete(conf, w, axis=1))
+    conf[1, w] = 0.5  # a second view counts it: it counts again
+    assert keypoint_cost(moved[None], cams, kp, conf, min_views=2)[0] > 1e-3
+    assert keypoint_cost(moved[None], cams, kp, conf, min_views=3)[0] < 1e-12
+    assert parse_image_options({"keypoint_views": "2"}, ImageOptions()).keypoint_views == 2
+    for bad in ("0", "two", "1.5", True):
+        with pytest.raises(ConfigError, match="keypoint_views"):
+            parse_image_options({"keypoint_views": bad}, ImageOptions())
 
 
 def test_the_limbs_swaps_read_a_view_whose_legs_alone_are_swapped():
@@ -271,11 +301,11 @@ def test_fill_gaps_takes_plausible_bones_from_the_nearest_frames():
 
 @settings(max_examples=60, deadline=None)
 @given(st.integers(0, 2 ** 32 - 1), st.sampled_from(sorted(SWAPS)), st.sampled_from([(0.3, 1.0), (0.1, 0.5), (0.05, 0.0)]),
-       st.integers(1, 9), st.integers(1, 5))
-def test_the_compiled_keypoint_cost_is_the_plain_loops(seed, swaps, tp, n, n_views):
+       st.integers(1, 9), st.integers(1, 5), st.integers(1, 3))
+def test_the_compiled_keypoint_cost_is_the_plain_loops(seed, swaps, tp, n, n_views, min_views):
     """The compiled term against :func:`keypoint_cost_reference` (plain loops): random cameras with distortion,
-    detections missing or at confidence 0, joints behind a camera, every labelling set, threshold and power; and a
-    fitness's packed camera tables give the same numbers as packing them here."""
+    detections missing or at confidence 0, joints behind a camera, every labelling set, threshold, power and number
+    of views a joint needs; and a fitness's packed camera tables give the same numbers as packing them here."""
     from swarmpose.camera import Camera
     from swarmpose.render.project import camera_tables
 
@@ -293,10 +323,11 @@ def test_the_compiled_keypoint_cost_is_the_plain_loops(seed, swaps, tp, n, n_vie
         poses[-1, 3] = [3000 * np.cos(0.0), 0.0, 1500]  # a joint at or behind some camera
     threshold, power = tp
     a = joint_weights("elbow:0.5+l_wrist:2") if seed % 2 else None
-    fast = keypoint_cost(poses, cams, kp, conf, weights=a, elbow=0.9, swaps=swaps, threshold=threshold, power=power)
+    fast = keypoint_cost(poses, cams, kp, conf, weights=a, elbow=0.9, swaps=swaps, threshold=threshold, power=power,
+                         min_views=min_views)
     plain = keypoint_cost_reference(poses, cams, kp, conf, weights=a, elbow=0.9, swaps=swaps, threshold=threshold,
-                                    power=power)
+                                    power=power, min_views=min_views)
     np.testing.assert_allclose(fast, plain, rtol=1e-9, atol=1e-12)
     packed = keypoint_cost(poses, cams, kp, conf, weights=a, elbow=0.9, swaps=swaps, threshold=threshold,
-                           power=power, tables=camera_tables(cams)[:3])
+                           power=power, min_views=min_views, tables=camera_tables(cams)[:3])
     np.testing.assert_array_equal(packed, fast)

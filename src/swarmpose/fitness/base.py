@@ -25,7 +25,7 @@ __all__ = ["Fitness", "ImageOptions", "parse_image_options", "TERMS", "silhouett
 #: Values of the ``"terms"`` option.
 TERMS = ("silhouette+edge", "silhouette", "edge", "distance")
 _OPTION_KEYS = ("edge_cones", "edge_top", "terms", "distance", "keypoints", "keypoint_joints", "keypoint_elbow",
-                "keypoint_swaps", "keypoint_scale", "keypoint_threshold", "keypoint_power")
+                "keypoint_swaps", "keypoint_scale", "keypoint_threshold", "keypoint_power", "keypoint_views")
 
 
 @runtime_checkable
@@ -89,6 +89,10 @@ class ImageOptions:
         A detection counts in the keypoint term from confidence ``keypoint_threshold`` on (default
         :data:`swarmpose.detection.joints.MIN_CONFIDENCE`, 0.3), with weight ``confidence ** keypoint_power``
         (default 1; 0 weighs every counted detection alike).
+    keypoint_views : int
+        A view's detection of a joint counts only where at least this many views count a detection of that joint
+        (default 1: every counted detection; 2: a joint that one view alone reports confidently is left to the
+        images, as it cannot be triangulated).
     """
 
     edge_cones: str | tuple[str, ...] = "all"
@@ -102,6 +106,7 @@ class ImageOptions:
     keypoint_scale: float = KEYPOINT_SCALE
     keypoint_threshold: float = KEYPOINT_THRESHOLD
     keypoint_power: float = 1.0
+    keypoint_views: int = 1
 
     def __post_init__(self) -> None:
         if self.terms not in TERMS:
@@ -127,6 +132,14 @@ class ImageOptions:
             object.__setattr__(self, name, f)
         if self.keypoint_swaps not in SWAPS:
             raise ConfigError(f"keypoint_swaps must be one of {', '.join(SWAPS)}, got {self.keypoint_swaps!r}")
+        views = self.keypoint_views
+        try:
+            n = int(views) if isinstance(views, (int, np.integer, str)) and not isinstance(views, bool) else 0
+        except ValueError:
+            n = 0
+        if not 1 <= n <= 64:
+            raise ConfigError(f"keypoint_views must be a whole number of views in 1-64, got {views!r}")
+        object.__setattr__(self, "keypoint_views", n)
         object.__setattr__(self, "keypoint_joints", str(self.keypoint_joints))
         joint_weights(self.keypoint_joints)  # checks the text: a ConfigError names what is wrong
 
@@ -154,7 +167,8 @@ def parse_image_options(options: Mapping[str, Any] | None, default: ImageOptions
                         keypoint_swaps=options.get("keypoint_swaps", default.keypoint_swaps),
                         keypoint_scale=options.get("keypoint_scale", default.keypoint_scale),
                         keypoint_threshold=options.get("keypoint_threshold", default.keypoint_threshold),
-                        keypoint_power=options.get("keypoint_power", default.keypoint_power))
+                        keypoint_power=options.get("keypoint_power", default.keypoint_power),
+                        keypoint_views=options.get("keypoint_views", default.keypoint_views))
 
 
 def silhouette_score(Y: np.ndarray, P: np.ndarray, O: np.ndarray, a: float = 0.5) -> np.ndarray:

@@ -161,7 +161,7 @@ class ImageFitness:
         options : mapping, optional
             Per-stage overrides of ``edge_cones``, ``edge_top``, ``terms``, ``distance``, ``keypoints``,
             ``keypoint_joints``, ``keypoint_elbow``, ``keypoint_swaps``, ``keypoint_scale``,
-            ``keypoint_threshold``, ``keypoint_power``.
+            ``keypoint_threshold``, ``keypoint_power``, ``keypoint_views``.
 
         Raises
         ------
@@ -193,6 +193,7 @@ class ImageFitness:
                                                      f.keypoint_confidence, weights=a, elbow=opts.keypoint_elbow,
                                                      swaps=opts.keypoint_swaps, scale=opts.keypoint_scale,
                                                      threshold=opts.keypoint_threshold, power=opts.keypoint_power,
+                                                     min_views=opts.keypoint_views,
                                                      tables=(prepared.R, prepared.t, prepared.cam))
         if bad is not None:
             scores[bad] = np.nan  # the optimisers' "invalid" (shared/design.md; optim.base score rule)

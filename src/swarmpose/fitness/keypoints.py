@@ -31,7 +31,8 @@ from swarmpose.detection.joints import MIN_CONFIDENCE
 from swarmpose.errors import ConfigError
 from swarmpose.joints import JOINT_INDEX, JOINTS15, SWAP15
 
-__all__ = ["keypoint_cost", "keypoint_cost_reference", "joint_weights", "detector_elbows", "SCALE", "SWAP", "SWAPS"]
+__all__ = ["keypoint_cost", "keypoint_cost_reference", "views_agreeing", "joint_weights", "detector_elbows", "SCALE",
+           "SWAP", "SWAPS"]
 
 #: Robust scale of the residual, as a fraction of the image diagonal (about 22 px at 544 x 960).
 SCALE = 0.02
@@ -104,7 +105,7 @@ def detector_elbows(joints: np.ndarray, fraction: float) -> np.ndarray:
 def keypoint_cost(joints: np.ndarray, cameras: Sequence[Camera], keypoints: np.ndarray,
                   confidence: np.ndarray, scale: float = SCALE,
                   weights: Sequence[float] | None = None, elbow: float = 1.0, swaps: str = "body",
-                  threshold: float = MIN_CONFIDENCE, power: float = 1.0,
+                  threshold: float = MIN_CONFIDENCE, power: float = 1.0, min_views: int = 1,
                   tables: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """``-K``: the robust keypoint cost ``(N,)`` in ``[0, 1]`` of model joints ``(N, 15, 3)`` (mm).
 
@@ -128,6 +129,9 @@ def keypoint_cost(joints: np.ndarray, cameras: Sequence[Camera], keypoints: np.n
     threshold, power : float
         A detection counts from confidence ``threshold`` on (default :data:`MIN_CONFIDENCE`), with weight
         ``confidence ** power`` (default 1: its confidence; 0: every counted detection alike).
+    min_views : int
+        A detection counts only where at least this many views count a detection of its joint (default 1), as
+        :func:`views_agreeing` leaves them.
     tables : (R, t, cam), optional
         The cameras packed as :func:`swarmpose.render.project.camera_tables` packs them (an image fitness has
         them per frame; the kernel reads ``cam``'s first 10 columns); default: packed here.
@@ -142,16 +146,31 @@ def keypoint_cost(joints: np.ndarray, cameras: Sequence[Camera], keypoints: np.n
     s = float(scale) * float(np.hypot(cameras[0].width, cameras[0].height))
     a = np.ones(len(JOINTS15)) if weights is None else np.asarray(weights, dtype=np.float64)
     out = np.empty(J.shape[0])
-    keypoint_kernel(J, R, t, cam, np.asarray(keypoints, dtype=np.float64), np.asarray(confidence, dtype=np.float64),
+    confidence = np.asarray(confidence, dtype=np.float64)
+    if min_views > 1:
+        confidence = views_agreeing(keypoints, confidence, threshold, min_views)
+    keypoint_kernel(J, R, t, cam, np.asarray(keypoints, dtype=np.float64), confidence,
                     _PERMS[swaps], a, float(threshold), float(power), s * s, out)
     return out
+
+
+def views_agreeing(keypoints: np.ndarray, confidence: np.ndarray, threshold: float, min_views: int) -> np.ndarray:
+    """``confidence (C, 15)`` with 0 for the joints that fewer than ``min_views`` views count (a detection present,
+    its confidence at least ``threshold`` and above 0): a joint one view alone reports confidently cannot be
+    triangulated, and a wrong one leads the model's joint along that view's ray."""
+    conf = np.asarray(confidence, dtype=np.float64)
+    counted = np.isfinite(np.asarray(keypoints, dtype=np.float64)).all(axis=-1) & (conf >= threshold) & (conf > 0)
+    return np.where(counted.sum(axis=0) >= min_views, conf, 0.0)
 
 
 def keypoint_cost_reference(joints: np.ndarray, cameras: Sequence[Camera], keypoints: np.ndarray,
                             confidence: np.ndarray, scale: float = SCALE,
                             weights: Sequence[float] | None = None, elbow: float = 1.0,
-                            swaps: str = "body", threshold: float = MIN_CONFIDENCE, power: float = 1.0) -> np.ndarray:
+                            swaps: str = "body", threshold: float = MIN_CONFIDENCE, power: float = 1.0,
+                            min_views: int = 1) -> np.ndarray:
     """:func:`keypoint_cost` written as plain loops over poses, views, labellings and joints."""
+    seen_by = [sum(1 for c in range(len(cameras)) if np.isfinite(keypoints[c][j]).all()
+                   and confidence[c][j] >= threshold and confidence[c][j] > 0) for j in range(len(JOINTS15))]
     J = np.array(joints, dtype=np.float64)
     for n in range(len(J)):
         for side in ("l", "r"):
@@ -164,7 +183,8 @@ def keypoint_cost_reference(joints: np.ndarray, cameras: Sequence[Camera], keypo
         acc, views = 0.0, 0
         for c, cam in enumerate(cameras):
             conf = [float(confidence[c][j]) ** power if np.isfinite(keypoints[c][j]).all()
-                    and confidence[c][j] >= threshold and confidence[c][j] > 0 else 0.0 for j in range(len(JOINTS15))]
+                    and confidence[c][j] >= threshold and confidence[c][j] > 0 and seen_by[j] >= min_views else 0.0
+                    for j in range(len(JOINTS15))]
             labellings = []
             for perm in SWAPS[swaps]:
                 wl = [conf[perm[j]] * a[j] for j in range(len(JOINTS15))]  # model joint j, detection perm[j]

@@ -1,0 +1,141 @@
+"""Where a tracked joint misses by more than a limit: does the evidence prefer the truth's limb, or the tracked one?
+
+For a ``swarmpose track`` results folder with a ground truth, every run's joint-frames beyond ``--limit`` mm
+(wrists, elbows, knees and ankles: the joints one limb's parameters move) are scored with the frame's fitness
+as the tracker scores its last choice of the frame (the refinement's options with the run's own over them, the
+detector's elbows where the run measured them): the tracked pose against the same pose with that limb's
+parameters taken from the IK pose (the model's best fit to the truth). Beside the whole fitness, each of its
+terms alone: the silhouette, the edges, the two together (the image) and, on a sequence with a detector's
+keypoints, the keypoint term (the whole less the image). Where the fitness scores the tracked limb higher, no
+search can find the truth's: the evidence itself points elsewhere; where it scores the truth's limb higher, the
+search missed it.
+
+Per clip: the misses counted, the share where each term scores the truth's limb higher, the median score
+difference (truth's limb less tracked), how far the truth's limb puts the joint (it moves the limb only, on
+the tracked trunk), and the share where the whole IK pose scores higher than the tracked one.
+
+Run:  .venv/bin/python scripts/miss_evidence.py results/detected-keypoints/cmu_131_01_walk-refined-heading
+          [more folders] [--runs 3] [--limit 100] [--json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+from pathlib import Path
+
+import numpy as np
+
+from swarmpose.features import parse_feature_options
+from swarmpose.fitness.base import parse_fitness_options
+from swarmpose.io.files import read_json_object
+from swarmpose.io.sequence import open_sequence
+from swarmpose.joints import JOINTS15
+from swarmpose.track.observation import frame_observation
+from swarmpose.track.start import has_keypoints, tracked_views
+from swarmpose.track.tracker import TrackConfig, _make_fitness, prepare_track
+
+#: The joints one limb's parameters move, and that limb's parameter group.
+LIMB_OF = {"l_elbow": "left_arm", "l_wrist": "left_arm", "r_elbow": "right_arm", "r_wrist": "right_arm",
+           "l_knee": "left_leg", "l_ankle": "left_leg", "r_knee": "right_leg", "r_ankle": "right_leg"}
+TERMS = ("fitness", "silhouette", "edge", "image", "keypoints")
+
+
+def clip_evidence(results: Path, runs: int, limit: float) -> dict:
+    config = read_json_object(results / "config.json")
+    fields = {f.name for f in dataclasses.fields(TrackConfig)}
+    cfg = TrackConfig(**{k: v for k, v in config.items() if k in fields and k != "fitness_kind"})
+    setup = prepare_track(config["sequence"], cfg, results)
+    if not setup.has_ground_truth:
+        raise SystemExit(f"{results}: the sequence has no ground truth")
+    model, fitness = setup.model, _make_fitness(setup)
+    algo = cfg.optimizer(model)
+    options = {**getattr(algo, "refine_options", {}), **(getattr(algo, "frame_options", None) or {}),
+               **parse_fitness_options(cfg.fitness_options)}
+    run_dirs = sorted(results.glob("run_*/track.npz"))[:runs]
+    if not run_dirs:
+        raise SystemExit(f"{results}: no run_*/track.npz")
+    seq = open_sequence(config["sequence"])
+    try:
+        views = tracked_views(seq, cfg.views)
+        keypoints = seq.marker_data.to_dense() if has_keypoints(seq) else None
+        if keypoints is None:
+            options.pop("keypoint_elbow", None)
+            options["keypoints"] = 0.0
+        backgrounds = seq.backgrounds()
+        feature_options = parse_feature_options(cfg.feature_options)
+        rows = []
+        for f in run_dirs:
+            run_options = dict(options)
+            if run_options.get("keypoint_elbow") == "auto":
+                run_options["keypoint_elbow"] = read_json_object(f.parent / "summary.json")["keypoint_elbow"]
+            with np.load(f) as z:
+                params = np.asarray(z["params"])
+            err = np.linalg.norm(model.joints15(params) - setup.gt_joints, axis=-1)
+            for t in range(len(params)):
+                missed = [JOINTS15[j] for j in np.flatnonzero(err[t] > limit) if JOINTS15[j] in LIMB_OF]
+                if not missed:
+                    continue
+                fitness.bind(frame_observation(seq, int(setup.frame_indices[t]), cfg.fitness_kind, cfg.downsample,
+                                               backgrounds, feature_options, views, keypoints))
+                for joint in missed:
+                    x = params[t].copy()
+                    x_truth = x.copy()
+                    group = model.group(LIMB_OF[joint])
+                    x_truth[group] = setup.ik_params[t][group]
+                    pair = np.stack([x, x_truth])
+                    score = {"fitness": fitness.evaluate(pair, run_options)}
+                    whole = fitness.evaluate(np.stack([x, setup.ik_params[t]]), run_options)
+                    image = {**run_options, "keypoints": 0.0}
+                    score["image"] = fitness.evaluate(pair, image)
+                    score["silhouette"] = fitness.evaluate(pair, {**image, "terms": "silhouette"})
+                    score["edge"] = fitness.evaluate(pair, {**image, "terms": "edge"})
+                    if keypoints is not None:
+                        score["keypoints"] = score["fitness"] - score["image"]
+                    j = JOINTS15.index(joint)
+                    moved = float(np.linalg.norm(model.joints15(x_truth[None])[0, j] - setup.gt_joints[t, j]))
+                    rows.append({"run": f.parent.name, "position": t, "joint": joint, "error_mm": float(err[t, j]),
+                                 "truth_limb_error_mm": moved,
+                                 "truth_limb_minus_tracked": {k: float(v[1] - v[0]) for k, v in score.items()},
+                                 "truth_pose_minus_tracked": float(whole[1] - whole[0])})
+    finally:
+        seq.close()
+    out = {"results": str(results), "runs": len(run_dirs), "limit_mm": limit, "misses": len(rows)}
+    if rows:
+        out["truth_limb_error_mm_median"] = float(np.median([r["truth_limb_error_mm"] for r in rows]))
+        out["truth_pose_higher"] = float(np.mean([r["truth_pose_minus_tracked"] > 0 for r in rows]))
+        for term in TERMS:
+            d = np.array([r["truth_limb_minus_tracked"][term] for r in rows if term in r["truth_limb_minus_tracked"]])
+            if len(d):
+                out[term] = {"truth_higher": float(np.mean(d > 0)), "median_difference": float(np.median(d))}
+    out["rows"] = rows
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("results", type=Path, nargs="+")
+    ap.add_argument("--runs", type=int, default=3, help="the first N runs of each folder")
+    ap.add_argument("--limit", type=float, default=100.0, help="mm: a joint farther off is a miss")
+    ap.add_argument("--json", action="store_true")
+    args = ap.parse_args()
+    clips = [clip_evidence(r, args.runs, args.limit) for r in args.results]
+    if args.json:
+        print(json.dumps({"clips": clips}))
+        return
+    print(f"{'results':40s} {'misses':>6s} {'truth limb':>11s} {'truth pose':>10s}  "
+          + "  ".join(f"{t:>16s}" for t in TERMS))
+    print(f"{'':40s} {'':>6s} {'mm (median)':>11s} {'higher':>10s}  " + "  ".join(f"{'higher · median':>16s}" for _ in TERMS))
+    for c in clips:
+        if not c["misses"]:
+            print(f"{Path(c['results']).name:40s} {0:6d}")
+            continue
+        cells = [f"{100 * c[t]['truth_higher']:5.0f} % {c[t]['median_difference']:+8.4f}" if t in c else f"{'-':>16s}"
+                 for t in TERMS]
+        print(f"{Path(c['results']).name:40s} {c['misses']:6d} {c['truth_limb_error_mm_median']:11.0f} "
+              f"{100 * c['truth_pose_higher']:8.0f} %  " + "  ".join(cells))
+
+
+if __name__ == "__main__":
+    main()
