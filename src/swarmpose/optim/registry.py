@@ -612,10 +612,12 @@ def _refined_limbs(model: Any, fps: float) -> RefinedConfig:
 def _refined_heading(model: Any, fps: float) -> RefinedConfig:
     """The default tracker: ``refined-limbs`` with the body's heading searched again on every frame (:data:`TURN_SEARCH`),
     and, where the sequence carries a detector's keypoints, the keypoint term (weight :data:`KEYPOINT_WEIGHT`, the
-    detector's elbows where :data:`KEYPOINT_ELBOW` puts them) in every search of a frame and the keypoint IK after
-    them. On a sequence without keypoints it is ``refined-limbs --variant turn=on``, pose for pose."""
+    detector's elbows where :data:`KEYPOINT_ELBOW` puts them, the joints weighed as :data:`KEYPOINT_JOINTS` says) in
+    every search of a frame and the keypoint IK after them. On a sequence without keypoints it is ``refined-limbs
+    --variant turn=on``, pose for pose."""
     return dataclasses.replace(_refined_limbs(model, fps), name="refined-heading", turn_search=TURN_SEARCH,
-                               frame_options={"keypoints": KEYPOINT_WEIGHT, "keypoint_elbow": KEYPOINT_ELBOW},
+                               frame_options={"keypoints": KEYPOINT_WEIGHT, "keypoint_elbow": KEYPOINT_ELBOW,
+                                              "keypoint_joints": KEYPOINT_JOINTS},
                                keypoint_ik=True)
 
 
@@ -631,6 +633,14 @@ KEYPOINT_WEIGHT = 2.0
 #: the shared recording's subject, whose arms are split at Winter's 0.565). Synthetic clips with detected
 #: keypoints, 3 runs: the 8 clips' mean 22.6 -> 21.5 mm, the walk 20.8 -> 18.3 (docs/results.md).
 KEYPOINT_ELBOW = "auto"
+
+#: The joints' weights inside the default's keypoint term (``keypoint_joints``): the wrists count half. Of the
+#: detector's confident detections on the synthetic renders the wrists' lie more than 40 px off the truth most often
+#: (3.5 % and 1.6 %, against 0.4-1.4 % for the elbows and at most 0.4 % elsewhere), and where a track misses a wrist
+#: the keypoint term prefers the missed place to the truth's (``scripts/miss_evidence.py``). Synthetic clips with
+#: detected keypoints, 3 runs: the 8 clips' mean 21.7 -> 21.0 mm with 0.5, the six it was measured on equal with
+#: 0.25, worse with 2 (docs/results.md).
+KEYPOINT_JOINTS = "wrist:0.5"
 
 
 def _refined_keypoints(model: Any, fps: float) -> RefinedConfig:
