@@ -93,7 +93,6 @@ def fit_ik(
     rest_weight: float = 20.0,
     polish: bool = True,
     missing: bool = False,
-    tol: float = 1e-10,
     progress=None,
 ) -> IKResult:
     """Fit ``model`` to ground-truth joints ``(T, 15, 3)`` (mm) frame by frame.
@@ -119,9 +118,6 @@ def fit_ik(
         Allow non-finite joints (a detector's joint that no two views saw): they get no residual, so the
         parameters only they would show stay near the start (the rest pose) and their errors are NaN.
         By default a non-finite joint is an error.
-    tol : float, default 1e-10
-        The solves' ``xtol`` and ``ftol`` (:func:`scipy.optimize.least_squares`): 1e-10 for the IK floor; a fit to
-        noisy detections needs less (``swarmpose.track.start.keypoint_ik``).
     progress : optional callable ``progress(k)`` called after each frame (for progress bars).
     """
     gt = np.asarray(joints15, dtype=np.float64)
@@ -164,14 +160,14 @@ def fit_ik(
         x0 = np.clip(x, lo_in, hi_in)
         sol = least_squares(residuals, x0, jac=jacobian, bounds=(lo, hi), method="trf",
                             x_scale=np.where(model.is_rotation, 1.0, 100.0), max_nfev=max_nfev,
-                            xtol=tol, ftol=tol)
+                            xtol=1e-10, ftol=1e-10)
         x = sol.x
         params[t] = best[t] = x
         if polish:
             fit = least_squares(lambda p, target=target, m=m: m * (model.joints15(p)[0].ravel() - target),
                                 np.clip(x, lo_in, hi_in), jac=lambda p: jacobian(p)[: 45], bounds=(lo, hi),
                                 method="trf", x_scale=np.where(model.is_rotation, 1.0, 100.0), max_nfev=max_nfev,
-                                xtol=tol, ftol=tol)
+                                xtol=1e-10, ftol=1e-10)
             if fit.cost < 0.5 * np.sum(residuals(x)[: 45] ** 2):
                 best[t] = fit.x
         if progress is not None:

@@ -154,22 +154,15 @@ def fill_gaps(joints: np.ndarray, k: int = 0, reach: int = 10, tolerance: float 
     return out
 
 
-#: The keypoint IK's solver tolerance (``fit_ik``'s ``tol``): its fits lie within 0.2 mm (0.003 on average) of
-#: those at the IK floor's 1e-10 on the walk's triangulated detections, which are some 30 mm off, in 3/4 of the
-#: solver's steps.
-KEYPOINT_IK_TOL = 1e-8
-
-
 def keypoint_ik(model: Any, joints: np.ndarray, x0: np.ndarray, constraint: Any = None) -> np.ndarray | None:
     """The pose nearest ``x0`` that fits one frame's triangulated joints ``(15, 3)`` (an IK fit from ``x0``,
-    polished on the joint residuals, to :data:`KEYPOINT_IK_TOL`), or None when a joint is missing or the fit
-    breaks ``constraint``."""
+    polished on the joint residuals), or None when a joint is missing or the fit breaks ``constraint``."""
     from swarmpose.body.ik import fit_ik
 
     j = np.asarray(joints, dtype=np.float64)
     if not np.isfinite(j).all():
         return None
-    x = fit_ik(model, j[None], init=np.asarray(x0, dtype=np.float64), tol=KEYPOINT_IK_TOL).floor_params[0]
+    x = fit_ik(model, j[None], init=np.asarray(x0, dtype=np.float64)).floor_params[0]
     if constraint is not None and not bool(np.asarray(constraint(x[None])).ravel()[0]):
         return None
     return x
