@@ -638,8 +638,8 @@ KEYPOINT_ELBOW = "auto"
 #: detector's confident detections on the synthetic renders the wrists' lie more than 40 px off the truth most often
 #: (3.5 % and 1.6 %, against 0.4-1.4 % for the elbows and at most 0.4 % elsewhere), and where a track misses a wrist
 #: the keypoint term prefers the missed place to the truth's (``scripts/miss_evidence.py``). Synthetic clips with
-#: detected keypoints, 3 runs: the 8 clips' mean 21.7 -> 21.0 mm with 0.5, the six it was measured on equal with
-#: 0.25, worse with 2 (docs/results.md).
+#: detected keypoints, 3 runs: the 8 clips' mean 21.7 -> 21.0 mm with 0.5 (5 runs: 21.5 -> 21.0); 0.25 level with
+#: 0.5 on the six clips it was run on; 2 worse on the walk (docs/results.md).
 KEYPOINT_JOINTS = "wrist:0.5"
 
 
