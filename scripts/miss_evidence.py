@@ -85,8 +85,8 @@ def clip_evidence(results: Path, runs: int, limit: float) -> dict:
                     group = model.group(LIMB_OF[joint])
                     x_truth[group] = setup.ik_params[t][group]
                     pair = np.stack([x, x_truth])
-                    score = {"fitness": fitness.evaluate(pair, run_options)}
-                    whole = fitness.evaluate(np.stack([x, setup.ik_params[t]]), run_options)
+                    tracked, limb, whole = fitness.evaluate(np.stack([x, x_truth, setup.ik_params[t]]), run_options)
+                    score = {"fitness": np.array([tracked, limb])}
                     image = {**run_options, "keypoints": 0.0}
                     score["image"] = fitness.evaluate(pair, image)
                     score["silhouette"] = fitness.evaluate(pair, {**image, "terms": "silhouette"})
@@ -98,7 +98,7 @@ def clip_evidence(results: Path, runs: int, limit: float) -> dict:
                     rows.append({"run": f.parent.name, "position": t, "joint": joint, "error_mm": float(err[t, j]),
                                  "truth_limb_error_mm": moved,
                                  "truth_limb_minus_tracked": {k: float(v[1] - v[0]) for k, v in score.items()},
-                                 "truth_pose_minus_tracked": float(whole[1] - whole[0])})
+                                 "truth_pose_minus_tracked": float(whole - tracked)})
     finally:
         seq.close()
     out = {"results": str(results), "runs": len(run_dirs), "limit_mm": limit, "misses": len(rows)}
