@@ -15,6 +15,7 @@ from swarmpose.fitness.keypoints import (
     SWAP,
     SWAPS,
     detector_elbows,
+    joint_thresholds,
     joint_weights,
     keypoint_cost,
     keypoint_cost_reference,
@@ -171,6 +172,45 @@ def test_keypoint_joint_weights_are_read_and_refused_with_the_joints_named():
                       ("hip:x", "PART:WEIGHT")]:
         with pytest.raises(ConfigError, match=says):
             joint_weights(bad)
+
+
+def test_keypoint_thresholds_per_joint_count_only_the_joints_named_lower():
+    """``keypoint_threshold=wrist:0.1``: a wrist detected at 0.15 counts, an elbow at 0.15 does not; the same
+    threshold for every joint given per joint is the number itself, to the last bit; the plain loops agree; the text
+    is read and refused through a fitness's options with the option named."""
+    from swarmpose.camera import Camera
+    from swarmpose.fitness.base import ImageOptions, parse_image_options
+
+    rng = np.random.default_rng(5)
+    cams = [Camera.look_at(f"c{i}", [3000 * np.cos(a), 3000 * np.sin(a), 1500], [0, 0, 1000],
+                           dist=(0.05, 0.01, 0, 0, 0)) for i, a in enumerate((0.2, 1.9, 3.5))]
+    truth = rng.normal(0, 300, (15, 3)) + [0, 0, 1000]
+    kp = reproject(cams, truth)
+    conf = rng.uniform(0.35, 1.0, (3, 15))
+    wrist, elbow = JOINTS15.index("l_wrist"), JOINTS15.index("l_elbow")
+    conf[:, [wrist, elbow]] = 0.15
+    thresholds = joint_thresholds("wrist:0.1")
+    assert thresholds[wrist] == thresholds[JOINTS15.index("r_wrist")] == 0.1 and thresholds[elbow] == 0.3
+    assert joint_thresholds("0.2+wrist:0.1")[elbow] == 0.2 and joint_thresholds(0.25) == (0.25,) * 15
+    off_wrist, off_elbow = truth.copy(), truth.copy()
+    off_wrist[wrist] += [0, 0, 300]
+    off_elbow[elbow] += [0, 0, 300]
+    assert keypoint_cost(off_wrist[None], cams, kp, conf)[0] < 1e-12  # 0.15 < 0.3: the wrist does not count
+    assert keypoint_cost(off_wrist[None], cams, kp, conf, threshold=thresholds)[0] > 1e-3
+    assert keypoint_cost(off_elbow[None], cams, kp, conf, threshold=thresholds)[0] < 1e-12
+    poses = truth[None] + rng.normal(0, 40, (6, 15, 3))
+    for t, views in ((thresholds, 1), (joint_thresholds("0.5+r_knee:0.05"), 2)):
+        assert np.allclose(keypoint_cost(poses, cams, kp, conf, threshold=t, min_views=views),
+                           keypoint_cost_reference(poses, cams, kp, conf, threshold=t, min_views=views), atol=1e-12)
+    np.testing.assert_array_equal(keypoint_cost(poses, cams, kp, conf, threshold=(0.3,) * 15),
+                                  keypoint_cost(poses, cams, kp, conf, threshold=0.3))
+    assert parse_image_options({"keypoint_threshold": "0.2+wrist:0.1"}, ImageOptions()).keypoint_threshold == \
+        "0.2+wrist:0.1"
+    assert parse_image_options({"keypoint_threshold": "0.2"}, ImageOptions()).keypoint_threshold == 0.2
+    for bad, says in [("wrist:1.5", "PART:THRESHOLD"), ("knuckle:0.1", "names none of the joints"),
+                      ("0.2+wrist", "PART:THRESHOLD"), ("often", "keypoint_threshold must be")]:
+        with pytest.raises(ConfigError, match=says):
+            parse_image_options({"keypoint_threshold": bad}, ImageOptions())
 
 
 @pytest.fixture(scope="module")

@@ -13,7 +13,7 @@ from swarmpose.detection.joints import MIN_CONFIDENCE as KEYPOINT_THRESHOLD
 from swarmpose.errors import ConfigError, ShapeError, option_items
 from swarmpose.fitness._rowsum import row_sum
 from swarmpose.fitness.keypoints import SCALE as KEYPOINT_SCALE
-from swarmpose.fitness.keypoints import SWAPS, joint_weights
+from swarmpose.fitness.keypoints import SWAPS, joint_thresholds, joint_weights
 
 #: Hash of the kernel sources this module's cached kernels inline (fitness/_rowsum.py); tests/test_numba_cache.py
 #: says when it must change.
@@ -85,10 +85,14 @@ class ImageOptions:
     keypoint_scale : float
         The keypoint term's robust scale ``s`` as a fraction of the image diagonal
         (:data:`swarmpose.fitness.keypoints.SCALE`, 0.02): a detection farther off than ``s`` costs nearly the most.
-    keypoint_threshold, keypoint_power : float
+    keypoint_threshold : float or str
         A detection counts in the keypoint term from confidence ``keypoint_threshold`` on (default
-        :data:`swarmpose.detection.joints.MIN_CONFIDENCE`, 0.3), with weight ``confidence ** keypoint_power``
-        (default 1; 0 weighs every counted detection alike).
+        :data:`swarmpose.detection.joints.MIN_CONFIDENCE`, 0.3); per joint as ``"wrist:0.1"`` or
+        ``"0.2+wrist:0.1"`` (:func:`swarmpose.fitness.keypoints.joint_thresholds`; the joints not named at 0.3, or
+        at the number that leads).
+    keypoint_power : float
+        A counted detection's weight is ``confidence ** keypoint_power`` (default 1; 0 weighs every counted
+        detection alike).
     keypoint_views : int
         A view's detection of a joint counts only where at least this many views count a detection of that joint
         (default 1: every counted detection; 2: a joint that one view alone reports confidently is left to the
@@ -104,7 +108,7 @@ class ImageOptions:
     keypoint_elbow: float = 1.0
     keypoint_swaps: str = "body"
     keypoint_scale: float = KEYPOINT_SCALE
-    keypoint_threshold: float = KEYPOINT_THRESHOLD
+    keypoint_threshold: float | str = KEYPOINT_THRESHOLD
     keypoint_power: float = 1.0
     keypoint_views: int = 1
 
@@ -119,7 +123,6 @@ class ImageOptions:
         numbers += [("keypoint_elbow", lambda f: 0 < f <= 1, "a fraction of the upper arm in (0, 1] (or auto, which a "
                                                             "track measures on its sequence)"),
                     ("keypoint_scale", lambda f: 0 < f <= 1, "a fraction of the image diagonal in (0, 1]"),
-                    ("keypoint_threshold", lambda f: 0 <= f <= 1, "a number in [0, 1]"),
                     ("keypoint_power", lambda f: 0 <= f <= 4, "a number in [0, 4]")]
         for name, ok, expected in numbers:
             value = getattr(self, name)
@@ -130,6 +133,19 @@ class ImageOptions:
             if isinstance(value, bool) or not ok(f):
                 raise ConfigError(f"{name} must be {expected}, got {value!r}")
             object.__setattr__(self, name, f)
+        threshold = self.keypoint_threshold
+        if isinstance(threshold, str) and (":" in threshold or "+" in threshold):  # per joint: checked here
+            joint_thresholds(threshold.strip())
+            object.__setattr__(self, "keypoint_threshold", threshold.strip())
+        else:
+            try:
+                f = float(threshold)
+            except (TypeError, ValueError):
+                f = float("nan")
+            if isinstance(threshold, bool) or not 0 <= f <= 1:
+                raise ConfigError(f"keypoint_threshold must be a number in [0, 1] or per joint as 0.2+wrist:0.1, "
+                                  f"got {threshold!r}")
+            object.__setattr__(self, "keypoint_threshold", f)
         if self.keypoint_swaps not in SWAPS:
             raise ConfigError(f"keypoint_swaps must be one of {', '.join(SWAPS)}, got {self.keypoint_swaps!r}")
         views = self.keypoint_views

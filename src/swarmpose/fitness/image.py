@@ -29,7 +29,7 @@ from swarmpose.fitness.distance import (
     part_distances,
     prepare_distance_maps,
 )
-from swarmpose.fitness.keypoints import joint_weights, keypoint_cost
+from swarmpose.fitness.keypoints import joint_thresholds, joint_weights, keypoint_cost
 from swarmpose.render.project import DEFAULT_N_RIM, DEFAULT_NEAR_MM
 from swarmpose.render.samples import DEFAULT_EDGE_SPACING_PX, TOP_EDGE_CONE, edge_cone_mask
 
@@ -189,10 +189,13 @@ class ImageFitness:
         if opts.keypoints > 0 and prepared.features.keypoints is not None:
             f = prepared.features
             a = joint_weights(opts.keypoint_joints) if opts.keypoint_joints else None
+            threshold = opts.keypoint_threshold
+            if isinstance(threshold, str):  # per joint
+                threshold = joint_thresholds(threshold)
             scores -= opts.keypoints * keypoint_cost(self.model.joints15(p), prepared.cameras, f.keypoints,
                                                      f.keypoint_confidence, weights=a, elbow=opts.keypoint_elbow,
                                                      swaps=opts.keypoint_swaps, scale=opts.keypoint_scale,
-                                                     threshold=opts.keypoint_threshold, power=opts.keypoint_power,
+                                                     threshold=threshold, power=opts.keypoint_power,
                                                      min_views=opts.keypoint_views,
                                                      tables=(prepared.R, prepared.t, prepared.cam))
         if bad is not None:

@@ -31,8 +31,8 @@ from swarmpose.detection.joints import MIN_CONFIDENCE
 from swarmpose.errors import ConfigError
 from swarmpose.joints import JOINT_INDEX, JOINTS15, SWAP15
 
-__all__ = ["keypoint_cost", "keypoint_cost_reference", "views_agreeing", "joint_weights", "detector_elbows", "SCALE",
-           "SWAP", "SWAPS"]
+__all__ = ["keypoint_cost", "keypoint_cost_reference", "views_agreeing", "joint_weights", "joint_thresholds",
+           "detector_elbows", "SCALE", "SWAP", "SWAPS"]
 
 #: Robust scale of the residual, as a fraction of the image diagonal (about 22 px at 544 x 960).
 SCALE = 0.02
@@ -59,6 +59,28 @@ SWAPS = {"body": (tuple(range(len(JOINTS15))), tuple(int(j) for j in SWAP)),
 _PERMS = {name: np.array(perms, dtype=np.int64) for name, perms in SWAPS.items()}  # (L, 15), for the kernel
 
 
+def _per_joint(spec: str, option: str, base: float, ok, form: str, example: str,
+               bare: bool) -> tuple[float, ...]:
+    """The 15 joints' values from ``"part:v+part:v"`` over ``base`` (later parts win); with ``bare`` a part may be
+    a number alone, which sets every joint."""
+    values = [base] * len(JOINTS15)
+    for item in filter(None, (t.strip() for t in str(spec).split("+"))):
+        part, sep, value = item.rpartition(":") if ":" in item else ("", "", item)
+        try:
+            v = float(value)
+        except ValueError:
+            v = float("nan")
+        if (not sep and not bare) or not ok(v):
+            raise ConfigError(f"{option}: {item!r} is not {form} (e.g. {example})")
+        hit = list(range(len(JOINTS15))) if not sep else [j for j, name in enumerate(JOINTS15)
+                                                          if part.strip() and part.strip() in name]
+        if not hit:
+            raise ConfigError(f"{option}: {part!r} names none of the joints {', '.join(JOINTS15)}")
+        for j in hit:
+            values[j] = v
+    return tuple(values)
+
+
 @lru_cache(maxsize=32)  # read once per text, not on every evaluation of the fitness
 def joint_weights(spec: str) -> tuple[float, ...]:
     """The 15 joints' weights ``a_j`` from ``"elbow:0.25+hip:0.5"``: each ``part:w`` sets every joint whose name
@@ -69,22 +91,23 @@ def joint_weights(spec: str) -> tuple[float, ...]:
     ConfigError
         A part that names no joint, or a weight that is not a number >= 0.
     """
-    a = [1.0] * len(JOINTS15)
-    for item in filter(None, (t.strip() for t in str(spec).split("+"))):
-        part, sep, value = item.partition(":")
-        try:
-            w = float(value)
-        except ValueError:
-            w = float("nan")
-        if not sep or not (np.isfinite(w) and w >= 0):
-            raise ConfigError(f"keypoint_joints: {item!r} is not PART:WEIGHT with a weight >= 0 "
-                              f"(e.g. elbow:0.25+hip:0.5)")
-        hit = [j for j, name in enumerate(JOINTS15) if part.strip() and part.strip() in name]
-        if not hit:
-            raise ConfigError(f"keypoint_joints: {part!r} names none of the joints {', '.join(JOINTS15)}")
-        for j in hit:
-            a[j] = w
-    return tuple(a)
+    return _per_joint(spec, "keypoint_joints", 1.0, lambda w: bool(np.isfinite(w) and w >= 0),
+                      "PART:WEIGHT with a weight >= 0", "elbow:0.25+hip:0.5", bare=False)
+
+
+@lru_cache(maxsize=32)
+def joint_thresholds(spec: str | float) -> tuple[float, ...]:
+    """The 15 joints' confidence thresholds from ``0.2``, ``"wrist:0.1"`` or ``"0.2+wrist:0.1"``: a number alone
+    sets every joint, ``part:t`` the joints whose name contains ``part``; later parts win; the rest stay at
+    :data:`MIN_CONFIDENCE`.
+
+    Raises
+    ------
+    ConfigError
+        A part that names no joint, or a threshold outside [0, 1].
+    """
+    return _per_joint(str(spec), "keypoint_threshold", MIN_CONFIDENCE, lambda t: bool(0 <= t <= 1),
+                      "a threshold or PART:THRESHOLD, each in [0, 1]", "0.2+wrist:0.1", bare=True)
 
 
 def detector_elbows(joints: np.ndarray, fraction: float) -> np.ndarray:
@@ -105,7 +128,7 @@ def detector_elbows(joints: np.ndarray, fraction: float) -> np.ndarray:
 def keypoint_cost(joints: np.ndarray, cameras: Sequence[Camera], keypoints: np.ndarray,
                   confidence: np.ndarray, scale: float = SCALE,
                   weights: Sequence[float] | None = None, elbow: float = 1.0, swaps: str = "body",
-                  threshold: float = MIN_CONFIDENCE, power: float = 1.0, min_views: int = 1,
+                  threshold: float | Sequence[float] = MIN_CONFIDENCE, power: float = 1.0, min_views: int = 1,
                   tables: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """``-K``: the robust keypoint cost ``(N,)`` in ``[0, 1]`` of model joints ``(N, 15, 3)`` (mm).
 
@@ -126,9 +149,12 @@ def keypoint_cost(joints: np.ndarray, cameras: Sequence[Camera], keypoints: np.n
         Where the detector's elbow is taken to lie on the model's upper arm (:func:`detector_elbows`).
     swaps : {"body", "limbs", "ends"}
         The labellings tried per view (:data:`SWAPS`).
-    threshold, power : float
-        A detection counts from confidence ``threshold`` on (default :data:`MIN_CONFIDENCE`), with weight
-        ``confidence ** power`` (default 1: its confidence; 0: every counted detection alike).
+    threshold : float or (15,) float
+        A detection counts from confidence ``threshold`` on (default :data:`MIN_CONFIDENCE`; one per joint, by the
+        detection's label: :func:`joint_thresholds`).
+    power : float
+        A counted detection's weight is ``confidence ** power`` (default 1: its confidence; 0: every counted
+        detection alike).
     min_views : int
         A detection counts only where at least this many views count a detection of its joint (default 1), as
         :func:`views_agreeing` leaves them.
@@ -147,6 +173,9 @@ def keypoint_cost(joints: np.ndarray, cameras: Sequence[Camera], keypoints: np.n
     a = np.ones(len(JOINTS15)) if weights is None else np.asarray(weights, dtype=np.float64)
     out = np.empty(J.shape[0])
     confidence = np.asarray(confidence, dtype=np.float64)
+    if np.ndim(threshold):  # per joint: the detections under their joint's threshold weigh 0, as absent ones do
+        confidence = np.where(confidence >= np.asarray(threshold, dtype=np.float64), confidence, 0.0)
+        threshold = 0.0
     if min_views > 1:
         confidence = views_agreeing(keypoints, confidence, threshold, min_views)
     keypoint_kernel(J, R, t, cam, np.asarray(keypoints, dtype=np.float64), confidence,
@@ -154,7 +183,8 @@ def keypoint_cost(joints: np.ndarray, cameras: Sequence[Camera], keypoints: np.n
     return out
 
 
-def views_agreeing(keypoints: np.ndarray, confidence: np.ndarray, threshold: float, min_views: int) -> np.ndarray:
+def views_agreeing(keypoints: np.ndarray, confidence: np.ndarray, threshold: float | Sequence[float],
+                   min_views: int) -> np.ndarray:
     """``confidence (C, 15)`` with 0 for the joints that fewer than ``min_views`` views count (a detection present,
     its confidence at least ``threshold`` and above 0): a joint one view alone reports confidently cannot be
     triangulated, and a wrong one leads the model's joint along that view's ray."""
@@ -166,11 +196,12 @@ def views_agreeing(keypoints: np.ndarray, confidence: np.ndarray, threshold: flo
 def keypoint_cost_reference(joints: np.ndarray, cameras: Sequence[Camera], keypoints: np.ndarray,
                             confidence: np.ndarray, scale: float = SCALE,
                             weights: Sequence[float] | None = None, elbow: float = 1.0,
-                            swaps: str = "body", threshold: float = MIN_CONFIDENCE, power: float = 1.0,
-                            min_views: int = 1) -> np.ndarray:
+                            swaps: str = "body", threshold: float | Sequence[float] = MIN_CONFIDENCE,
+                            power: float = 1.0, min_views: int = 1) -> np.ndarray:
     """:func:`keypoint_cost` written as plain loops over poses, views, labellings and joints."""
+    thr = [float(threshold)] * len(JOINTS15) if np.ndim(threshold) == 0 else [float(v) for v in threshold]
     seen_by = [sum(1 for c in range(len(cameras)) if np.isfinite(keypoints[c][j]).all()
-                   and confidence[c][j] >= threshold and confidence[c][j] > 0) for j in range(len(JOINTS15))]
+                   and confidence[c][j] >= thr[j] and confidence[c][j] > 0) for j in range(len(JOINTS15))]
     J = np.array(joints, dtype=np.float64)
     for n in range(len(J)):
         for side in ("l", "r"):
@@ -183,7 +214,7 @@ def keypoint_cost_reference(joints: np.ndarray, cameras: Sequence[Camera], keypo
         acc, views = 0.0, 0
         for c, cam in enumerate(cameras):
             conf = [float(confidence[c][j]) ** power if np.isfinite(keypoints[c][j]).all()
-                    and confidence[c][j] >= threshold and confidence[c][j] > 0 and seen_by[j] >= min_views else 0.0
+                    and confidence[c][j] >= thr[j] and confidence[c][j] > 0 and seen_by[j] >= min_views else 0.0
                     for j in range(len(JOINTS15))]
             labellings = []
             for perm in SWAPS[swaps]:
