@@ -13,8 +13,12 @@ against the ground truth; ``--without`` tracks it a second time with ``--fitness
 TEXT`` its optimiser variant (e.g. ``keypoint_ik=off``, the default without its fit to the keypoints); both name
 the results folder.
 
+``--mocap DIR`` reads the clips from another folder than the shared one (e.g. the mirrored clips of
+``scripts/mirrored_clips.py``, motions the tracker was never tuned on).
+
 Run:  .venv/bin/python scripts/detected_keypoints.py [--clips CLIP ...] [--fps 20] [--runs 3] [--algo A]
-      [--fitness-options TEXT] [--variant TEXT] [--without] [--work results/detected-keypoints] [--json]
+      [--fitness-options TEXT] [--variant TEXT] [--without] [--mocap DIR] [--work results/detected-keypoints]
+      [--json]
 Needs MediaPipe Pose (``make detect``).
 """
 
@@ -99,13 +103,16 @@ def main() -> None:
     ap.add_argument("--fitness-options", default="", help="the track's --fitness-options (e.g. keypoint_swaps=ends)")
     ap.add_argument("--variant", default="", help="the track's --variant (e.g. keypoint_ik=off)")
     ap.add_argument("--without", action="store_true", help="also track with keypoints=0 (the term off)")
+    ap.add_argument("--mocap", type=Path, default=MOCAP, help="the folder of the clips (default: the shared one)")
     ap.add_argument("--work", type=Path, default=Path("results/detected-keypoints"))
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
     args.work.mkdir(parents=True, exist_ok=True)
     rows = []
     for name in args.clips:
-        clip = MOCAP / f"{name}.bvh"
+        clip = args.mocap / f"{name}.bvh"
+        if not clip.is_file():
+            raise SystemExit(f"{clip}: no such clip")
         hybrid, imp = with_keypoints(clip, args.work)
         row = {"clip": name, "swapped_view_frames": imp["swapped_view_frames"],
                "view_frames": imp["n_frames"] * len(imp["cameras"]), "found_rate": imp["found_rate"]}
