@@ -13,7 +13,7 @@ whose keypoints are
 and prints, for the frames tracked at ``--fps``, how far the counted detections (confidence >= 0.3) of the limbs'
 joints and of the wrists lie from the truth, projected (each view read as detected or with its whole body's left
 and right exchanged, whichever is nearer, as the keypoint term reads it): the median, and the shares beyond 25 and
-50 px, before and after. Track the copy with ``swarmpose track OUT --fps 20 --runs 3``.
+50 px, before and after; and how long, over every frame, a view's wrist stays more than 25 px off as detected. Track the copy with ``swarmpose track OUT --fps 20 --runs 3``.
 
 Run:  .venv/bin/python scripts/steadied_keypoints.py results/detected-keypoints/cmu_16_16_walk-keypoints
           --out results/detected-keypoints/cmu_16_16_walk-steadied [--relabel] [--median 3] [--floor 0.05] [--json]
@@ -80,6 +80,27 @@ def errors(kp: np.ndarray, conf: np.ndarray, truth_px: np.ndarray) -> dict:
     return out
 
 
+def miss_runs(kp: np.ndarray, conf: np.ndarray, truth_px: np.ndarray) -> dict:
+    """How long a view's counted wrist detection stays more than 25 px off (as :func:`errors` reads it), in frames
+    of the sequence: the mean and the longest run."""
+    e0 = np.linalg.norm(kp - truth_px, axis=-1)
+    e1 = np.linalg.norm(kp[..., list(SWAP15), :] - truth_px, axis=-1)
+    e = np.where((np.nansum(e1, axis=-1) < np.nansum(e0, axis=-1))[..., None], e1, e0)
+    off = (conf >= MIN_CONFIDENCE) & (e > 25)
+    runs = []
+    for c in range(kp.shape[1]):
+        for j in WRISTS:
+            n = 0
+            for flag in [*off[:, c, j], False]:
+                if flag:
+                    n += 1
+                elif n:
+                    runs.append(n)
+                    n = 0
+    return {"runs": len(runs), "mean_frames": float(np.mean(runs)) if runs else 0.0,
+            "longest_frames": int(max(runs, default=0))}
+
+
 def write_copy(src: Path, dst: Path, kp: np.ndarray, conf: np.ndarray) -> None:
     """``src`` as ``dst`` with these keypoints (the views linked, the small files copied)."""
     if dst.exists():
@@ -119,16 +140,19 @@ def main() -> None:
         cameras = list(seq.cameras)
         threshold = 0.025 * float(np.hypot(*seq.image_size))
         frames = np.asarray(seq.subsample(args.fps), dtype=np.int64)
-        truth_px = reproject(cameras, np.asarray(seq.gt_joints)[frames])
+        truth_all = reproject(cameras, np.asarray(seq.gt_joints))
+    truth_px = truth_all[frames]
     kp, cf = np.asarray(dense, dtype=np.float64), np.nan_to_num(np.asarray(conf, dtype=np.float64))
     before = errors(kp[frames], cf[frames], truth_px)
+    runs = miss_runs(kp, cf, truth_all)
     if args.relabel:
         kp, cf = relabelled(cameras, kp, cf, args.floor, threshold)
     if args.median > 0:
         kp = steadied(kp, cf, args.median, args.floor)
     write_copy(args.sequence, args.out, kp, cf)
     result = {"sequence": str(args.sequence), "out": str(args.out), "relabel": args.relabel, "median": args.median,
-              "floor": args.floor, "before": before, "after": errors(kp[frames], cf[frames], truth_px)}
+              "floor": args.floor, "before": before, "after": errors(kp[frames], cf[frames], truth_px),
+              "wrist_misses_before": runs}
     if args.json:
         print(json.dumps(result))
         return
@@ -136,6 +160,8 @@ def main() -> None:
         print(when + ": " + "; ".join(f"{name} {r['n']} detections, median {r['median_px']:.1f} px, "
                                       f"{100 * r['over_25px']:.1f} % > 25 px, {100 * r['over_50px']:.1f} % > 50 px"
                                       for name, r in result[when].items()))
+    print(f"a view's wrist more than 25 px off, before: {runs['runs']} times, for {runs['mean_frames']:.1f} frames "
+          f"on average, {runs['longest_frames']} at most")
 
 
 if __name__ == "__main__":
