@@ -10,9 +10,10 @@ from swarmpose.body.priors import HardPriors
 from swarmpose.errors import ConfigError
 from swarmpose.fitness import make_fitness
 from swarmpose.fitness.scene import demo_cameras, demo_frame
+from swarmpose.joints import JOINTS15
 from swarmpose.optim import registry
 from swarmpose.optim.variants import apply_variant
-from swarmpose.track.turn import TurnSearch, turn_candidates
+from swarmpose.track.turn import TurnSearch, keypoint_turn, turn_candidates
 
 
 @pytest.fixture(scope="module")
@@ -177,3 +178,28 @@ def test_the_heading_speed_variant():
             apply_variant(cfg, bad)
     with pytest.raises(ConfigError, match="heading_speed=D"):
         apply_variant(registry.get("sppso", model=model, fps=20), "heading_speed=10")
+
+
+def test_the_keypoints_hips_give_the_turn_that_brings_a_lagging_pelvis_back(setup):
+    """A pelvis 22 degrees behind (between the fixed turns tried): :func:`keypoint_turn` reads the turn back from
+    the truth's hips, the search tries it and keeps it; a missing hip or a turn under ``least`` gives None."""
+    model, truth, fitness = setup
+    behind = turn_candidates(model, truth, (), (-22.0,))[0]
+    joints = model.joints15(truth[None])[0]
+    by = keypoint_turn(model, behind, joints)
+    assert by == pytest.approx(22.0, abs=0.5)
+    assert keypoint_turn(model, truth, joints) is None  # within `least` degrees
+    gone = joints.copy()
+    gone[JOINTS15.index("l_hip")] = np.nan
+    assert keypoint_turn(model, behind, gone) is None
+    s = search(keypoints=True)
+    out = s.run(fitness, model, behind, HardPriors(model).valid, model.sigma * 3.0, extra=(by,))
+    assert out.turned == by
+    assert joint_error(model, out.x, truth) < 0.5 * joint_error(model, behind, truth)
+    model20 = load_model("balan31")
+    on = apply_variant(apply_variant(registry.get("refined-limbs", model=model20, fps=20), "turn=on"),
+                       "turn_keypoints=on")
+    assert on.turn_search["keypoints"] is True
+    assert on.evals_per_frame == apply_variant(on, "turn_keypoints=off").evals_per_frame + 2
+    with pytest.raises(ConfigError, match="turn_keypoints=on or turn_keypoints=off"):
+        apply_variant(on, "turn_keypoints=maybe")

@@ -441,7 +441,7 @@ class RefinedConfig(OptimizerConfig):
         t = self.turn_search
         if t:
             n += (1 + len(t["whole"]) + len(t["pelvis"]) + int(t["n_best"]) * int(t["budget"])
-                  + (2 if t.get("guard") else 0))
+                  + (2 if t.get("guard") else 0) + (2 if t.get("keypoints") else 0))
         return n
 
     def start(self, x0: Any, rng: np.random.Generator, constraint: Constraint | None = None,

@@ -34,7 +34,8 @@ def apply_variant(config: Any, variant: str) -> Any:
       the silhouettes' triangulated centre since the frame before (``height=off``: not); ``turn=on``: the body's
       heading searched again on every frame (the pose and its pelvis alone turned, the best polished:
       ``swarmpose.track.turn``, 318 evaluations); ``turn_margin=M``: a turned pose kept only when it scores
-      more than M above the frame's pose; ``heading_speed=D``: the part of the heading's last step beyond D degrees
+      more than M above the frame's pose; ``turn_keypoints=on``: also the turn that lays the model's hips onto the
+      frame's triangulated keypoints (sequences with keypoints); ``heading_speed=D``: the part of the heading's last step beyond D degrees
       carried on into the prediction; ``keypoint_ik=on``: each frame's pose fitted to the triangulated
       keypoints from where the searches left it, kept when it scores higher (sequences with keypoints); several variants are
       joined by ``+`` (``apf=200x5+refine=0``).
@@ -68,6 +69,12 @@ def apply_variant(config: Any, variant: str) -> Any:
             raise ConfigError(f"variant {variant!r}: expected heading_speed=D (degrees per frame, >= 0) or "
                               f"heading_speed=off on a refined configuration ({config.name!r})")
         return dataclasses.replace(config, heading_speed=d)
+    if head == "turn_keypoints":
+        value = variant.partition("=")[2].strip()
+        if not getattr(config, "turn_search", None) or value not in ("on", "off"):
+            raise ConfigError(f"variant {variant!r}: expected turn_keypoints=on or turn_keypoints=off on a "
+                              f"configuration with the turn search ({config.name!r}: add turn=on first)")
+        return dataclasses.replace(config, turn_search={**dict(config.turn_search), "keypoints": value == "on"})
     if head == "turn_margin":
         value = variant.partition("=")[2].strip()
         try:

@@ -38,6 +38,7 @@ from swarmpose.track.start import (
     keypoint_ik,
     silhouette_start,
 )
+from swarmpose.track.turn import keypoint_turn
 
 __all__ = ["FrameSearch", "StepResult", "recentre", "backward_pass", "BackwardResult", "mix_limbs", "RISE_DEAD_ZONE_MM"]
 
@@ -175,7 +176,11 @@ class FrameSearch:
         carry = opt.carry() if hasattr(opt, "carry") else None
         if self.turn is not None:
             with timer.part("recovery"):
-                turned = self.turn.run(fitness, model, x, self.constraint, self.algo.sigma, extra or None)
+                by = None
+                if self.turn.keypoints and self.kp_joints is not None:
+                    by = keypoint_turn(model, x, self.kp_joints[i])
+                turned = self.turn.run(fitness, model, x, self.constraint, self.algo.sigma, extra or None,
+                                       extra=() if by is None else (by,))
             evals += turned.evaluations
             if turned.turned:
                 x, score = turned.x, turned.score

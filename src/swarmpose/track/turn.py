@@ -13,6 +13,9 @@ steps never make a turn of the pelvis that keeps the legs and the trunk in place
   about their own long axes turned back by as much (exact when the thighs hang and the trunk stands upright;
   the polish does the rest).
 
+With ``keypoints`` (a sequence with a detector's keypoints), both are also tried by the turn that lays the model's
+hip line onto the keypoints' triangulated hips, seen from above (:func:`keypoint_turn`).
+
 The candidates are scored in one batch with the frame's fitness; the best :attr:`TurnSearch.n_best` are
 polished by a pattern search of every parameter, and the best polished pose replaces the frame's pose when it
 scores higher (and, with ``guard``, when the guard's terms do not fall either).
@@ -27,9 +30,10 @@ from typing import Any
 import numpy as np
 
 from swarmpose.errors import ConfigError
+from swarmpose.joints import JOINT_INDEX
 from swarmpose.optim.refine import PatternSearch
 
-__all__ = ["TurnSearch", "TurnResult", "turn_candidates"]
+__all__ = ["TurnSearch", "TurnResult", "turn_candidates", "keypoint_turn"]
 
 #: The parameters turned back when the pelvis alone turns: a joint's rotation about its own long axis (the
 #: last elementary rotation of the root's children in the shipped models) and its axis sign.
@@ -65,6 +69,31 @@ def turn_candidates(model: Any, x: np.ndarray, whole: tuple[float, ...], pelvis:
     return np.clip(cands, lower, upper)
 
 
+def _hip_heading(joints: np.ndarray) -> float:
+    """The heading (radians, about the world's vertical z) of the line from the left hip to the right hip."""
+    d = np.asarray(joints)[JOINT_INDEX["r_hip"]] - np.asarray(joints)[JOINT_INDEX["l_hip"]]
+    return float(np.arctan2(d[1], d[0]))
+
+
+def keypoint_turn(model: Any, x: np.ndarray, joints: np.ndarray, least: float = 5.0) -> float | None:
+    """Degrees of ``pelvis_rz`` that turn pose ``x``'s hip line onto that of ``joints (15, 3)`` (the frame's
+    triangulated keypoints) seen from above; None where a hip is missing or the turn is under ``least`` degrees."""
+    j = np.asarray(joints, dtype=np.float64)
+    if not np.isfinite(j[[JOINT_INDEX["l_hip"], JOINT_INDEX["r_hip"]]]).all():
+        return None
+    own = model.joints15(np.asarray(x, dtype=np.float64)[None])[0]
+    d = (_hip_heading(j) - _hip_heading(own) + np.pi) % (2 * np.pi) - np.pi
+    if abs(np.degrees(d)) < least:
+        return None
+    rz = model.param_index("pelvis_rz")
+    turned = np.array(x, dtype=np.float64)
+    turned[rz] += d  # pelvis_rz's sign: the turn that brings the hips nearer is the one asked for
+    after = _hip_heading(model.joints15(turned[None])[0])
+    if abs((_hip_heading(j) - after + np.pi) % (2 * np.pi) - np.pi) > abs(d):
+        d = -d
+    return float(np.degrees(d))
+
+
 @dataclass
 class TurnResult:
     """What one frame's turn search did: the pose (turned or not), its score when turned, the evaluations and
@@ -93,6 +122,8 @@ class TurnSearch:
         evaluations).
     margin : float
         A turned pose is kept only when it scores more than this above the frame's pose.
+    keypoints : bool
+        Also try the turn that lays the hips onto the frame's triangulated keypoints (:func:`keypoint_turn`).
     """
 
     whole: tuple[float, ...]
@@ -101,19 +132,20 @@ class TurnSearch:
     budget: int
     guard: str = ""
     margin: float = 0.0
+    keypoints: bool = False
 
     @classmethod
     def from_settings(cls, settings: Mapping[str, Any]) -> TurnSearch | None:
         """From an optimiser configuration's ``turn_search`` mapping (``None`` when it is empty)."""
         if not settings:
             return None
-        unknown = set(settings) - {"whole", "pelvis", "n_best", "budget", "guard", "margin"}
+        unknown = set(settings) - {"whole", "pelvis", "n_best", "budget", "guard", "margin", "keypoints"}
         if unknown:
             raise ConfigError(f"unknown turn search setting(s) {sorted(unknown)}")
         s = dict(settings)
         return cls(whole=tuple(map(float, s["whole"])), pelvis=tuple(map(float, s["pelvis"])),
                    n_best=int(s["n_best"]), budget=int(s["budget"]), guard=str(s.get("guard", "")),
-                   margin=float(s.get("margin", 0.0)))
+                   margin=float(s.get("margin", 0.0)), keypoints=bool(s.get("keypoints", False)))
 
     def __post_init__(self) -> None:
         if self.n_best < 1 or self.budget < 1:
@@ -125,10 +157,13 @@ class TurnSearch:
                               "turns tried")
 
     def run(self, fitness: Any, model: Any, x: np.ndarray, constraint: Callable[[np.ndarray], np.ndarray] | None,
-            sigma: np.ndarray, options: Mapping[str, Any] | None = None) -> TurnResult:
-        """Search the turns of ``x`` (scored with ``options``); returns the pose to go on from."""
+            sigma: np.ndarray, options: Mapping[str, Any] | None = None,
+            extra: tuple[float, ...] = ()) -> TurnResult:
+        """Search the turns of ``x`` (scored with ``options``), the whole pose and the pelvis alone also by each of
+        ``extra`` degrees; returns the pose to go on from."""
         x = np.array(x, dtype=np.float64)
-        cands = turn_candidates(model, x, self.whole, self.pelvis)
+        whole, pelvis = (*self.whole, *extra), (*self.pelvis, *extra)
+        cands = turn_candidates(model, x, whole, pelvis)
         ok = np.ones(len(cands), bool) if constraint is None else np.asarray(constraint(cands), dtype=bool)
         scores = np.nan_to_num(np.asarray(fitness.evaluate(np.vstack([x[None], cands[ok]]), options), float),
                                nan=-np.inf)
@@ -154,5 +189,5 @@ class TurnSearch:
             result.evaluations += 2
             if not g[1] >= g[0]:
                 return result
-        degrees = (*self.whole, *self.pelvis)[best_k]
+        degrees = (*whole, *pelvis)[best_k]
         return TurnResult(x=best_x, score=best_score, evaluations=result.evaluations, turned=float(degrees))
