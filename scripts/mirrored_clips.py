@@ -56,10 +56,17 @@ def mirrored_motion(clip) -> np.ndarray:
     return out
 
 
-def world_joints(path: Path) -> tuple[list[str], np.ndarray]:
-    """The clip's joint names and world positions ``(F, J, 3)`` (its own units)."""
-    clip = read_bvh(path)
-    return clip.joint_names, clip.global_positions()
+def reflection_offsets(src: Path, dst: Path) -> tuple[list[str], np.ndarray]:
+    """The joint names and how far ``(F, J)`` mm each joint of clip ``dst`` lies from the reflection of its other
+    side's in clip ``src`` (both read with their own forward kinematics)."""
+    clip, mirrored = read_bvh(src), read_bvh(dst)
+    names = clip.joint_names
+    before, after = clip.global_positions(), mirrored.global_positions()
+    if mirrored.joint_names != names or after.shape != before.shape:
+        raise SystemExit(f"{dst}: its hierarchy differs from {src}'s")
+    twin = [names.index(other_side(n, set(names))) for n in names]
+    reflected = before[:, twin] * np.array([-1.0, 1.0, 1.0])
+    return names, np.linalg.norm(after - reflected, axis=-1) * infer_unit_scale(clip)[0]
 
 
 def write_mirrored(src: Path, dst: Path) -> None:
@@ -84,17 +91,11 @@ def main() -> None:
     for name in args.clips:
         src, dst = MOCAP / f"{name}.bvh", args.out / f"{name}_mirrored.bvh"
         write_mirrored(src, dst)
-        names, before = world_joints(src)
-        names2, after = world_joints(dst)
-        if names2 != names or after.shape != before.shape:
-            raise SystemExit(f"{dst}: its hierarchy differs from {src}'s")
-        twin = [names.index(other_side(n, set(names))) for n in names]
-        reflected = before[:, twin] * np.array([-1.0, 1.0, 1.0])
-        off = np.linalg.norm(after - reflected, axis=-1) * infer_unit_scale(read_bvh(src))[0]  # mm
-        rows.append({"clip": name, "out": str(dst), "frames": int(before.shape[0]),
+        _, off = reflection_offsets(src, dst)
+        rows.append({"clip": name, "out": str(dst), "frames": int(off.shape[0]),
                      "median_mm": float(np.median(off)), "max_mm": float(off.max())})
         if not args.json:
-            print(f"{dst}: {before.shape[0]} frames; joints from the reflection: median {rows[-1]['median_mm']:.1f} "
+            print(f"{dst}: {off.shape[0]} frames; joints from the reflection: median {rows[-1]['median_mm']:.1f} "
                   f"mm, largest {rows[-1]['max_mm']:.1f} mm")
     if args.json:
         print(json.dumps({"clips": rows}))

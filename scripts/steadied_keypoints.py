@@ -65,12 +65,18 @@ def steadied(kp: np.ndarray, conf: np.ndarray, k: int, floor: float) -> np.ndarr
     return out
 
 
+def _pixel_errors(kp: np.ndarray, truth_px: np.ndarray) -> np.ndarray:
+    """``(..., C, 15)`` px from the truth, each view read as detected or with its whole body's left and right
+    exchanged, whichever is nearer (as the keypoint term reads it)."""
+    e0 = np.linalg.norm(kp - truth_px, axis=-1)
+    e1 = np.linalg.norm(kp[..., list(SWAP15), :] - truth_px, axis=-1)
+    return np.where((np.nansum(e1, axis=-1) < np.nansum(e0, axis=-1))[..., None], e1, e0)
+
+
 def errors(kp: np.ndarray, conf: np.ndarray, truth_px: np.ndarray) -> dict:
     """Median and shares beyond 25 / 50 px of the counted limb and wrist detections, each view's labelling as
     detected or mirrored, whichever is nearer the truth."""
-    e0 = np.linalg.norm(kp - truth_px, axis=-1)
-    e1 = np.linalg.norm(kp[..., list(SWAP15), :] - truth_px, axis=-1)
-    e = np.where((np.nansum(e1, axis=-1) < np.nansum(e0, axis=-1))[..., None], e1, e0)
+    e = _pixel_errors(kp, truth_px)
     counted = (conf >= MIN_CONFIDENCE) & np.isfinite(e)
     out = {}
     for name, joints in (("limbs", LIMBS), ("wrists", WRISTS)):
@@ -83,9 +89,7 @@ def errors(kp: np.ndarray, conf: np.ndarray, truth_px: np.ndarray) -> dict:
 def miss_runs(kp: np.ndarray, conf: np.ndarray, truth_px: np.ndarray) -> dict:
     """How long a view's counted wrist detection stays more than 25 px off (as :func:`errors` reads it), in frames
     of the sequence: the mean and the longest run."""
-    e0 = np.linalg.norm(kp - truth_px, axis=-1)
-    e1 = np.linalg.norm(kp[..., list(SWAP15), :] - truth_px, axis=-1)
-    e = np.where((np.nansum(e1, axis=-1) < np.nansum(e0, axis=-1))[..., None], e1, e0)
+    e = _pixel_errors(kp, truth_px)
     off = (conf >= MIN_CONFIDENCE) & (e > 25)
     runs = []
     for c in range(kp.shape[1]):

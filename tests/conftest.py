@@ -1,4 +1,4 @@
-"""Shared test fixtures: paths to the shared motion-capture clips."""
+"""Shared test fixtures: paths to the shared motion-capture clips, and the repository's scripts as modules."""
 
 from __future__ import annotations
 
@@ -9,6 +9,21 @@ import pytest
 REPO = Path(__file__).resolve().parents[1]
 SHARED = REPO.parent / "shared"
 MOCAP = SHARED / "data" / "mocap"
+
+
+def _load_script(name: str):
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(name, REPO / "scripts" / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.fixture(scope="session")
+def load_script():
+    """``load_script(name)``: ``scripts/<name>.py`` imported as a module (the scripts are not a package)."""
+    return _load_script
 
 
 @pytest.fixture(scope="session")

@@ -3,9 +3,6 @@ jump of a detection is steadied by the median over the frames around it."""
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 
 from swarmpose.camera import Camera
@@ -13,16 +10,8 @@ from swarmpose.joints import JOINTS15
 from swarmpose.triangulation import reproject
 
 
-def _script():
-    path = Path(__file__).parents[2] / "scripts" / "steadied_keypoints.py"
-    spec = importlib.util.spec_from_file_location("steadied_keypoints", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-def test_swapped_wrists_are_put_back_and_a_jump_is_steadied():
-    m = _script()
+def test_swapped_wrists_are_put_back_and_a_jump_is_steadied(load_script):
+    m = load_script("steadied_keypoints")
     rng = np.random.default_rng(0)
     cams = [Camera.look_at(f"c{i}", [3000 * np.cos(a), 3000 * np.sin(a), 1500], [0, 0, 1000])
             for i, a in enumerate((0.2, 1.7, 3.2, 4.6))]

@@ -3,7 +3,6 @@ it is the clip again."""
 
 from __future__ import annotations
 
-import importlib.util
 from pathlib import Path
 
 import numpy as np
@@ -12,16 +11,9 @@ from swarmpose.io.bvh import read_bvh
 from swarmpose.io.mocap import infer_unit_scale
 
 
-def _script():
-    path = Path(__file__).parents[2] / "scripts" / "mirrored_clips.py"
-    spec = importlib.util.spec_from_file_location("mirrored_clips", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-def test_a_mirrored_clip_is_the_reflection_of_its_other_side_and_twice_the_clip(mocap_dir: Path, tmp_path: Path):
-    m = _script()
+def test_a_mirrored_clip_is_the_reflection_of_its_other_side_and_twice_the_clip(mocap_dir: Path, tmp_path: Path,
+                                                                                  load_script):
+    m = load_script("mirrored_clips")
     names = {"LeftArm", "RightArm", "LHipJoint", "RHipJoint", "lhand", "rhand", "lowerback", "Neck"}
     assert [m.other_side(n, names) for n in ("LeftArm", "RHipJoint", "lhand", "lowerback", "Neck")] == \
         ["RightArm", "LHipJoint", "rhand", "lowerback", "Neck"]
@@ -32,13 +24,11 @@ def test_a_mirrored_clip_is_the_reflection_of_its_other_side_and_twice_the_clip(
     clip, back = read_bvh(src), read_bvh(twice)
     np.testing.assert_allclose(back.motion, clip.motion, atol=1e-4)  # the files' four decimals
     assert [j.offset.tolist() for j in back.joints] == [j.offset.tolist() for j in clip.joints]
-    names, before = m.world_joints(src)
-    _, after = m.world_joints(once)
-    twin = [names.index(m.other_side(n, set(names))) for n in names]
-    off = np.linalg.norm(after - before[:, twin] * [-1.0, 1.0, 1.0], axis=-1) * infer_unit_scale(clip)[0]
+    names, off = m.reflection_offsets(src, once)
     hips = names.index("Hips")
     assert off[:, hips].max() < 0.01  # the root: its position reflected (to the print resolution)
     # the rest: each side keeps its own bones, a few mm from the other side's (the jog's subject: 7.5 mm median)
     assert np.median(off) < 15 and off.max() < 60
     # and far from the unreflected motion: the mirror changed something
+    before, after = clip.global_positions(), read_bvh(once).global_positions()
     assert np.median(np.linalg.norm(after - before, axis=-1)) * infer_unit_scale(clip)[0] > 100

@@ -157,17 +157,14 @@ def test_triangulated_keypoints_put_back_one_views_swapped_ankles(short_sequence
         np.testing.assert_allclose(keypoint_joints(seq, frames), np.asarray(seq.gt_joints)[frames], atol=0.5)
 
 
-def test_miss_evidence_finds_a_moved_arm_and_the_evidence_for_the_truths(keypoint_sequence: Path, tmp_path: Path):
+def test_miss_evidence_finds_a_moved_arm_and_the_evidence_for_the_truths(keypoint_sequence: Path, tmp_path: Path,
+                                                                         load_script):
     """``scripts/miss_evidence.py`` on a results folder whose run holds the IK poses with the left arm swung far
     off: it finds the left wrist as a miss (nothing off the left arm), the truth's arm puts the wrist back within the IK
     floor, and with keypoints at the truth every term scores the truth's arm higher."""
-    import importlib.util
-
     from swarmpose.track.tracker import TrackConfig, prepare_track, run_tracker, write_config
 
-    spec = importlib.util.spec_from_file_location("miss_evidence", Path(__file__).parents[2] / "scripts" / "miss_evidence.py")
-    script = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(script)
+    script = load_script("miss_evidence")
     out = tmp_path / "results"
     setup = prepare_track(keypoint_sequence, TrackConfig(algo="refined-heading", max_frames=2), out)
     write_config(out, setup, 1)
