@@ -167,7 +167,7 @@ def _world(Tj, p):
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
-def _segment_distance2(p0, p1, p2, q0, q1, q2, r0, r1, r2, t0, t1, t2):
+def segment_distance2(p0, p1, p2, q0, q1, q2, r0, r1, r2, t0, t1, t2):
     """Squared distance between the segments ``p -> q`` and ``r -> t`` (closest points, clamped to both)."""
     d10, d11, d12 = q0 - p0, q1 - p1, q2 - p2
     d20, d21, d22 = t0 - r0, t1 - r1, t2 - r2
@@ -219,7 +219,7 @@ def _pair_hits(T, a, b, joint, start, end, radii, scale, frac, keep):
     eb0, eb1, eb2 = _world(Tb, end[b])
     reach = keep * (max(radii[a, 0], radii[a, 1]) * max(scale[a, 0], scale[a, 1])
                     + 0.5 * max(radii[b, 0], radii[b, 1]) * (scale[b, 0] + scale[b, 1])) + 1.0
-    if _segment_distance2(sa0, sa1, sa2, ea0, ea1, ea2, sb0, sb1, sb2, eb0, eb1, eb2) > reach * reach:
+    if segment_distance2(sa0, sa1, sa2, ea0, ea1, ea2, sb0, sb1, sb2, eb0, eb1, eb2) > reach * reach:
         return False
     # axis . e_z of A's frame: the axis's rise out of the cross-section plane (checked non-zero)
     rise = (ea0 - sa0) * Ta[0, 2] + (ea1 - sa1) * Ta[1, 2] + (ea2 - sa2) * Ta[2, 2]

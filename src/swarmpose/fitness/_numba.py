@@ -36,7 +36,7 @@ from swarmpose.render._kernels import (
 #: fitness/threads.py).
 #: numba's cache sees edits to this file only, so an edit there must change this line (or cached kernels keep
 #: running the old code); tests/test_numba_cache.py says when and gives the new value.
-INLINED_SOURCES_SHA1 = "8d3688fa6feee228"
+INLINED_SOURCES_SHA1 = "ca04273adfc8d32e"
 
 __all__ = ["eval_claim", "eval_claim_go", "eval_kernel", "eval_share", "row_prefix_sums"]
 
@@ -66,17 +66,11 @@ def _edge_point(x, y, z, k, c, edges, valid, K, poly, nvs, bbox, axis, orient, a
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
-def _edge_line(px, py, pz, qx, qy, qz, spacing, k, c, edges, valid, K, poly, nvs, bbox, axis, orient,
-               occ, t_in, t_out):
-    """Samples at ``t = (i + 1/2) / n`` on the silhouette line ``p -> q`` of cone ``k``.
-
-    Occlusion as in :func:`swarmpose.render._kernels.hidden`, but the footprint test is done once per
-    (line, other cone) by clipping the line to the other outline; per sample only the depth
-    comparison with the few cones that cover part of the line remains (``occ``, ``t_in``, ``t_out``:
-    ``(K,)`` scratch). Returns ``(sum p, sum (1 - p)^2, count)`` over the visible samples.
-    """
-    L = math.sqrt((qx - px) * (qx - px) + (qy - py) * (qy - py))
-    n = n_samples(L, spacing)
+def line_occluders(px, py, pz, qx, qy, qz, k, valid, K, poly, nvs, bbox, axis, orient, occ, t_in, t_out):
+    """The cones that can hide part of cone ``k``'s silhouette line ``p -> q``: drawn (``valid``), their
+    axis nearer somewhere than the line, their outline covering the parameter interval ``[t_in, t_out]`` of
+    the line (Cyrus-Beck, :func:`swarmpose.render._kernels.clip_segment`). Written to ``occ[:m]``,
+    ``t_in[:m]``, ``t_out[:m]``; returns ``m``."""
     m = 0
     zmax = max(pz, qz)
     for j in range(K):
@@ -89,20 +83,40 @@ def _edge_line(px, py, pz, qx, qy, qz, spacing, k, c, edges, valid, K, poly, nvs
             t_in[m] = a
             t_out[m] = b
             m += 1
+    return m
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def line_sample(i, n, px, py, pz, qx, qy, qz, m, occ, t_in, t_out, axis):
+    """Sample ``i`` of ``n`` on the line ``p -> q`` (at ``t = (i + 1/2) / n``): ``(x, y, hidden)``, hidden when
+    one of the occluders ``occ[:m]`` covers it and its axis is nearer there (:func:`line_occluders`)."""
+    t = (i + 0.5) / n
+    x = px + t * (qx - px)
+    y = py + t * (qy - py)
+    for q in range(m):
+        if t_in[q] <= t <= t_out[q] and axis_depth_at(occ[q], x, y, axis) < pz + t * (qz - pz):
+            return x, y, True
+    return x, y, False
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _edge_line(px, py, pz, qx, qy, qz, spacing, k, c, edges, valid, K, poly, nvs, bbox, axis, orient,
+               occ, t_in, t_out):
+    """Samples at ``t = (i + 1/2) / n`` on the silhouette line ``p -> q`` of cone ``k``.
+
+    Occlusion as in :func:`swarmpose.render._kernels.hidden`, but the footprint test is done once per
+    (line, other cone) by clipping the line to the other outline (:func:`line_occluders`); per sample only
+    the depth comparison with the few cones that cover part of the line remains (``occ``, ``t_in``,
+    ``t_out``: ``(K,)`` scratch). Returns ``(sum p, sum (1 - p)^2, count)`` over the visible samples.
+    """
+    L = math.sqrt((qx - px) * (qx - px) + (qy - py) * (qy - py))
+    n = n_samples(L, spacing)
+    m = line_occluders(px, py, pz, qx, qy, qz, k, valid, K, poly, nvs, bbox, axis, orient, occ, t_in, t_out)
     s1 = 0.0
     s2 = 0.0
     cnt = 0.0
-    dx = qx - px
-    dy = qy - py
     for i in range(n):
-        t = (i + 0.5) / n
-        x = px + t * dx
-        y = py + t * dy
-        hid = False
-        for q in range(m):
-            if t_in[q] <= t <= t_out[q] and axis_depth_at(occ[q], x, y, axis) < pz + t * (qz - pz):
-                hid = True
-                break
+        x, y, hid = line_sample(i, n, px, py, pz, qx, qy, qz, m, occ, t_in, t_out, axis)
         if hid:
             continue
         p = pixel_value(edges, c, x, y)
@@ -112,37 +126,57 @@ def _edge_line(px, py, pz, qx, qy, qz, spacing, k, c, edges, valid, K, poly, nvs
     return s1, s2, cnt
 
 
-@nb.njit(cache=True, nogil=True)
-def _edge_arc(k, i0, i1, closed, spacing, c, edges, valid, K, poly, nvs, bbox, axis, orient, acc):
-    """Samples at arc lengths ``(i + 1/2) L / n`` on the outline arc ``poly[k, i0:i1]`` (closed: back
-    to ``i0``)."""
+@nb.njit(cache=True, nogil=True, inline="always")
+def _arc_segment(k, i0, i1, q, poly):
+    """Segment ``q`` of the outline arc ``poly[k, i0:i1]`` (the last one back to ``i0``): its vertices and
+    length."""
+    a = i0 + q
+    b = i0 + q + 1 if i0 + q + 1 < i1 else i0
+    return a, b, math.sqrt((poly[k, b, 0] - poly[k, a, 0]) ** 2 + (poly[k, b, 1] - poly[k, a, 1]) ** 2)
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def arc_length(k, i0, i1, closed, poly):
+    """``(m, L)``: the number of vertices and the length of the outline arc ``poly[k, i0:i1]`` (closed: back to
+    ``i0``)."""
     m = i1 - i0 + (1 if closed else 0)
-    if m < 2:
-        return
     L = 0.0
     for q in range(m - 1):
-        a = i0 + q
-        b = i0 + q + 1 if i0 + q + 1 < i1 else i0
-        L += math.sqrt((poly[k, b, 0] - poly[k, a, 0]) ** 2 + (poly[k, b, 1] - poly[k, a, 1]) ** 2)
+        L += _arc_segment(k, i0, i1, q, poly)[2]
+    return m, L
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def arc_point(s, m, k, i0, i1, poly, seg, seg_start, seg_len, a, b):
+    """The point at arc length ``s`` of the arc (:func:`arc_length`), walking on from segment ``seg`` (which
+    starts at ``seg_start``, vertices ``a -> b``, length ``seg_len``): ``(x, y, z)`` and the walk's new state
+    ``(seg, seg_start, seg_len, a, b)``."""
+    while s > seg_start + seg_len and seg < m - 2:
+        seg += 1
+        seg_start += seg_len
+        a, b, seg_len = _arc_segment(k, i0, i1, seg, poly)
+    t = (s - seg_start) / seg_len if seg_len > 0.0 else 0.0
+    t = min(max(t, 0.0), 1.0)
+    x = poly[k, a, 0] + t * (poly[k, b, 0] - poly[k, a, 0])
+    y = poly[k, a, 1] + t * (poly[k, b, 1] - poly[k, a, 1])
+    z = poly[k, a, 2] + t * (poly[k, b, 2] - poly[k, a, 2])
+    return x, y, z, seg, seg_start, seg_len, a, b
+
+
+@nb.njit(cache=True, nogil=True)
+def _edge_arc(k, i0, i1, closed, spacing, c, edges, valid, K, poly, nvs, bbox, axis, orient, acc):
+    """Samples at arc lengths ``(i + 1/2) L / n`` on the outline arc ``poly[k, i0:i1]`` (closed: back to
+    ``i0``)."""
+    m, L = arc_length(k, i0, i1, closed, poly)
+    if m < 2:
+        return
     n = n_samples(L, spacing)
     seg = 0
     seg_start = 0.0
-    a = i0
-    b = i0 + 1 if i0 + 1 < i1 else i0
-    seg_len = math.sqrt((poly[k, b, 0] - poly[k, a, 0]) ** 2 + (poly[k, b, 1] - poly[k, a, 1]) ** 2)
+    a, b, seg_len = _arc_segment(k, i0, i1, 0, poly)
     for i in range(n):
-        s = (i + 0.5) * L / n
-        while s > seg_start + seg_len and seg < m - 2:
-            seg += 1
-            seg_start += seg_len
-            a = i0 + seg
-            b = i0 + seg + 1 if i0 + seg + 1 < i1 else i0
-            seg_len = math.sqrt((poly[k, b, 0] - poly[k, a, 0]) ** 2 + (poly[k, b, 1] - poly[k, a, 1]) ** 2)
-        t = (s - seg_start) / seg_len if seg_len > 0.0 else 0.0
-        t = min(max(t, 0.0), 1.0)
-        x = poly[k, a, 0] + t * (poly[k, b, 0] - poly[k, a, 0])
-        y = poly[k, a, 1] + t * (poly[k, b, 1] - poly[k, a, 1])
-        z = poly[k, a, 2] + t * (poly[k, b, 2] - poly[k, a, 2])
+        x, y, z, seg, seg_start, seg_len, a, b = arc_point((i + 0.5) * L / n, m, k, i0, i1, poly, seg, seg_start,
+                                                           seg_len, a, b)
         _edge_point(x, y, z, k, c, edges, valid, K, poly, nvs, bbox, axis, orient, acc)
 
 

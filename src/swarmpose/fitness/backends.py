@@ -41,7 +41,7 @@ from swarmpose.render.project import (
 )
 
 __all__ = ["PreparedFrame", "prepare_frame", "Request", "Measurements", "ImageBackend", "ReferenceBackend",
-           "NumbaBackend", "BACKENDS", "make_backend"]
+           "NumbaBackend", "BACKENDS", "make_backend", "parameter_cones"]
 
 
 @dataclass(eq=False)
@@ -264,20 +264,31 @@ class NumbaBackend(_BackendBase):
         3 -> 26 ms per frame on the walk), and when other processes compete for the cores a batch took 5-10x
         longer (2-core machine at load average 7: 1.4k against 8.8k evaluations/s at 644x484).
         ``"serial"``: one core.
+    moving : bool, default True
+        A batch whose poses differ from its first pose only in parameters that move at most half of the cones
+        (a limb's search) is measured with the other cones' outlines, spans and edge samples computed once
+        (:mod:`swarmpose.fitness._numba_partial`): the same measurements to the last bit, in a fraction of the
+        time. ``False``: every pose measured in full (for comparison).
     """
 
     name = "numba"
     _threads: BatchThreads | None = None  # shared by the backends of a process (see _batch_threads)
 
     def __init__(self, model, *, n_rim: int = DEFAULT_N_RIM, near: float = DEFAULT_NEAR_MM,
-                 threads: str = "pool"):
+                 threads: str = "pool", moving: bool = True):
         super().__init__(model, n_rim=n_rim, near=near)
         from swarmpose.render._kernels import rim_tables
 
         if threads not in ("pool", "prange", "serial"):
             raise ConfigError(f"threads must be 'pool', 'prange' or 'serial', got {threads!r}")
         self.threads = threads
+        self.moving = bool(moving)
         self._ctab, self._stab = rim_tables(self.n_rim)
+        self._moves = parameter_cones(model.kin, self.cones.joint, len(model.lower))
+        self._base: tuple | None = None  # (prepared frame, request key, T0, stay_base's arrays) of the last batch
+        #: Items of the last batch measured in full although it took the moving-cones path (their staying
+        #: cones' transforms differed after all); ``-1``: the last batch was measured in full.
+        self.last_full_items = -1
 
     @classmethod
     def _batch_threads(cls, n: int) -> BatchThreads:
@@ -302,7 +313,11 @@ class NumbaBackend(_BackendBase):
                 request.edge_mask, int(request.top_cone), float(request.edge_spacing),
                 float(request.region_spacing), bool(request.silhouette), bool(request.edge), bool(request.region))
         nth = max(1, min(numba.get_num_threads(), N)) if self.threads != "serial" else 1
-        if self.threads == "prange" and nth > 1:
+        moving = self._moving_cones(p, request)
+        self.last_full_items = -1
+        if moving is not None and not (self.threads == "prange" and nth > 1):
+            self._measure_moving(prepared, p, request, moving, args, nth, counts, sums)
+        elif self.threads == "prange" and nth > 1:
             eval_kernel(*args, nth, counts, sums)
         elif nth == 1:
             eval_share(np.arange(N), *args, counts, sums)
@@ -315,6 +330,65 @@ class NumbaBackend(_BackendBase):
                 lambda: eval_claim(claim, done, *args, counts, sums),
                 lambda go, seq: eval_claim_go(go, seq, claim, done, *args, counts, sums), done, N * C)
         return Measurements.from_arrays(counts, sums)
+
+    def _moving_cones(self, poses: np.ndarray, request: Request) -> np.ndarray | None:
+        """The cones the batch moves against its first pose, when that is at most half of them and the request
+        has no region sums (else ``None``: the batch is measured in full)."""
+        if not self.moving or request.region or poses.shape[0] < 2 or poses.shape[1] != self._moves.shape[0]:
+            return None
+        moving = self._moves[(poses != poses[:1]).any(axis=0)].any(axis=0)
+        return moving if 2 * int(moving.sum()) <= moving.size else None
+
+    def _measure_moving(self, prepared: PreparedFrame, p: np.ndarray, request: Request, moving: np.ndarray,
+                        args: tuple, nth: int, counts: np.ndarray, sums: np.ndarray) -> None:
+        from swarmpose.body.kinematics import fk_pose_into
+        from swarmpose.fitness._numba_partial import eval_claim_moving, eval_claim_moving_go, stay_base
+
+        kin = self.model.kin
+        T0 = np.empty((kin.n_joints, 3, 4))
+        fk_pose_into(p[0], *kin.as_tuple(), T0)
+        # a search's batches hold the same staying cones: their base is measured once per frame and search
+        key = (moving.tobytes(), request.edge_mask.tobytes(), int(request.top_cone), float(request.edge_spacing))
+        staying = self.cones.joint[~moving]
+        cached = self._base
+        if (cached is not None and cached[0] is prepared and cached[1] == key
+                and np.array_equal(cached[2][staying], T0[staying])):
+            T0, base = cached[2], cached[3]
+        else:
+            base = stay_base(T0, moving, *self.cones.as_tuple(), prepared.R, prepared.t, prepared.cam, self._ctab,
+                             self._stab, self.near, prepared.prefix, prepared.edges, request.edge_mask,
+                             int(request.top_cone), float(request.edge_spacing))
+            self._base = (prepared, key, T0, base)
+        # the kernel's arguments: (poses, moving, kinematics, cones, ..., do_sil, do_edge) then the base
+        margs = (p, moving, *args[1:-1], T0, *base)
+        claim, done, full = np.zeros(1, np.int64), np.zeros(1, np.int64), np.zeros(1, np.int64)
+        N, C = p.shape[0], prepared.n_views
+        if nth == 1:
+            eval_claim_moving(claim, done, full, *margs, counts, sums)
+        else:
+            self._batch_threads(numba.get_num_threads()).share(
+                lambda: eval_claim_moving(claim, done, full, *margs, counts, sums),
+                lambda go, seq: eval_claim_moving_go(go, seq, claim, done, full, *margs, counts, sums), done,
+                N * C)
+        self.last_full_items = int(full[0])
+
+
+def parameter_cones(kin, cone_joint: np.ndarray, n_params: int) -> np.ndarray:
+    """``(D, K)`` bool: the cones whose joint's transform parameter ``d`` changes (the joints it drives, by a
+    rotation or a translation, and everything below them in the tree)."""
+    driven_by = np.zeros((n_params, kin.n_joints), bool)
+    for j in range(kin.n_joints):
+        for a in range(kin.rot_axis.shape[1]):
+            if kin.rot_axis[j, a] >= 0:
+                driven_by[kin.rot_param[j, a], j] = True
+        for a in range(kin.trans_param.shape[1]):
+            if kin.trans_param[j, a] >= 0:
+                driven_by[kin.trans_param[j, a], j] = True
+    moved = driven_by.copy()
+    for j in range(kin.n_joints):  # parents come first
+        if kin.parents[j] >= 0:
+            moved[:, j] |= moved[:, kin.parents[j]]
+    return moved[:, np.asarray(cone_joint)]
 
 
 def _empty(N: int, C: int) -> Measurements:

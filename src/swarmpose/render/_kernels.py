@@ -96,7 +96,7 @@ def _emit_arc(poly, k, i, Sx, Sy, Sz, ax, ay, az, bx, by, bz, th0, c0, s0, th1, 
     return i
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, inline="always")
 def cone_outline(T, joint, start, end, semi_a, semi_b, scale, Rc, tc, cam, ctab, stab, near,
                  k, poly, sides, axis, info, bbox, orient):
     """Outline polygon of cone ``k`` of one pose in one view (definition: :mod:`swarmpose.render`).
@@ -283,6 +283,78 @@ def _bucket_insert(cnt, bl, br, y, l_, r_):
     cnt[y] = m + 1
 
 
+@nb.njit(cache=True, nogil=True, inline="always")
+def bucket_outline(poly, k, n, H, W, cnt, bl, br):
+    """Insert the row spans of outline ``k`` (``n >= 3`` vertices) into the rows' buckets ``cnt, bl, br``
+    (see :func:`silhouette_counts`): the outline split at its top and bottom vertices into two chains walked
+    down the rows with incremental ``x``; on row ``y`` pixels ``ceil(x_min) .. floor(x_max)``, clipped to
+    the image."""
+    itop = 0
+    ibot = 0
+    for i in range(1, n):
+        if poly[k, i, 1] < poly[k, itop, 1]:
+            itop = i
+        if poly[k, i, 1] > poly[k, ibot, 1]:
+            ibot = i
+    y0 = max(int(math.ceil(poly[k, itop, 1])), 0)
+    y1 = min(int(math.floor(poly[k, ibot, 1])), H - 1)
+    if y0 > y1:
+        return
+    # chain a: top -> bottom forward, chain b: top -> bottom backward; edge (x0, y0) -> (x1, y1)
+    a0 = itop
+    a1 = itop + 1 if itop + 1 < n else 0
+    b0 = itop
+    b1 = itop - 1 if itop > 0 else n - 1
+    xa = 0.0
+    sa = 0.0
+    xb = 0.0
+    sb = 0.0
+    first = True
+    for y in range(y0, y1 + 1):
+        fy = float(y)
+        if first or (poly[k, a1, 1] <= fy and a1 != ibot):
+            while poly[k, a1, 1] <= fy and a1 != ibot:  # next edge (skips horizontal ones)
+                a0 = a1
+                a1 = a1 + 1 if a1 + 1 < n else 0
+            d = poly[k, a1, 1] - poly[k, a0, 1]
+            sa = (poly[k, a1, 0] - poly[k, a0, 0]) / d if d > 0.0 else 0.0
+            xa = poly[k, a0, 0] + (fy - poly[k, a0, 1]) * sa
+        if first or (poly[k, b1, 1] <= fy and b1 != ibot):
+            while poly[k, b1, 1] <= fy and b1 != ibot:
+                b0 = b1
+                b1 = b1 - 1 if b1 > 0 else n - 1
+            d = poly[k, b1, 1] - poly[k, b0, 1]
+            sb = (poly[k, b1, 0] - poly[k, b0, 0]) / d if d > 0.0 else 0.0
+            xb = poly[k, b0, 0] + (fy - poly[k, b0, 1]) * sb
+        first = False
+        lo_ = min(xa, xb)
+        hi_ = max(xa, xb)
+        xa += sa
+        xb += sb
+        lf = max(math.ceil(lo_), 0.0)
+        rf = min(math.floor(hi_), W - 1.0)
+        if lf <= rf:
+            _bucket_insert(cnt, bl, br, y, int(lf), int(rf))
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def row_range(poly, nvs, valid, K, H):
+    """``(Ymin, Ymax)``: the image rows the drawn outlines (``valid``, three vertices or more) can cover;
+    ``Ymin > Ymax`` when none."""
+    Ymin = H
+    Ymax = -1
+    for k in range(K):
+        if not valid[k] or nvs[k] < 3:
+            continue
+        for i in range(nvs[k]):
+            yy = poly[k, i, 1]
+            if yy < Ymin:
+                Ymin = max(int(math.ceil(yy)), 0)
+            if yy > Ymax:
+                Ymax = min(int(math.floor(yy)), H - 1)
+    return Ymin, Ymax
+
+
 @nb.njit(cache=True, nogil=True)
 def silhouette_counts(poly, nvs, valid, K, H, W, prefix, v, cnt, bl, br):
     """``(Y, P)`` of the union of the drawn outlines in view ``v`` by the scanline rule.
@@ -299,17 +371,7 @@ def silhouette_counts(poly, nvs, valid, K, H, W, prefix, v, cnt, bl, br):
 
     Scratch: ``cnt (H,)``, ``bl, br (H, K)`` integer.
     """
-    Ymin = H
-    Ymax = -1
-    for k in range(K):
-        if not valid[k] or nvs[k] < 3:
-            continue
-        for i in range(nvs[k]):
-            yy = poly[k, i, 1]
-            if yy < Ymin:
-                Ymin = max(int(math.ceil(yy)), 0)
-            if yy > Ymax:
-                Ymax = min(int(math.floor(yy)), H - 1)
+    Ymin, Ymax = row_range(poly, nvs, valid, K, H)
     if Ymin > Ymax:
         return 0, 0
     for y in range(Ymin, Ymax + 1):
@@ -318,52 +380,7 @@ def silhouette_counts(poly, nvs, valid, K, H, W, prefix, v, cnt, bl, br):
         n = nvs[k]
         if not valid[k] or n < 3:
             continue
-        itop = 0
-        ibot = 0
-        for i in range(1, n):
-            if poly[k, i, 1] < poly[k, itop, 1]:
-                itop = i
-            if poly[k, i, 1] > poly[k, ibot, 1]:
-                ibot = i
-        y0 = max(int(math.ceil(poly[k, itop, 1])), 0)
-        y1 = min(int(math.floor(poly[k, ibot, 1])), H - 1)
-        if y0 > y1:
-            continue
-        # chain a: top -> bottom forward, chain b: top -> bottom backward; edge (x0, y0) -> (x1, y1)
-        a0 = itop
-        a1 = itop + 1 if itop + 1 < n else 0
-        b0 = itop
-        b1 = itop - 1 if itop > 0 else n - 1
-        xa = 0.0
-        sa = 0.0
-        xb = 0.0
-        sb = 0.0
-        first = True
-        for y in range(y0, y1 + 1):
-            fy = float(y)
-            if first or (poly[k, a1, 1] <= fy and a1 != ibot):
-                while poly[k, a1, 1] <= fy and a1 != ibot:  # next edge (skips horizontal ones)
-                    a0 = a1
-                    a1 = a1 + 1 if a1 + 1 < n else 0
-                d = poly[k, a1, 1] - poly[k, a0, 1]
-                sa = (poly[k, a1, 0] - poly[k, a0, 0]) / d if d > 0.0 else 0.0
-                xa = poly[k, a0, 0] + (fy - poly[k, a0, 1]) * sa
-            if first or (poly[k, b1, 1] <= fy and b1 != ibot):
-                while poly[k, b1, 1] <= fy and b1 != ibot:
-                    b0 = b1
-                    b1 = b1 - 1 if b1 > 0 else n - 1
-                d = poly[k, b1, 1] - poly[k, b0, 1]
-                sb = (poly[k, b1, 0] - poly[k, b0, 0]) / d if d > 0.0 else 0.0
-                xb = poly[k, b0, 0] + (fy - poly[k, b0, 1]) * sb
-            first = False
-            lo_ = min(xa, xb)
-            hi_ = max(xa, xb)
-            xa += sa
-            xb += sb
-            lf = max(math.ceil(lo_), 0.0)
-            rf = min(math.floor(hi_), W - 1.0)
-            if lf <= rf:
-                _bucket_insert(cnt, bl, br, y, int(lf), int(rf))
+        bucket_outline(poly, k, n, H, W, cnt, bl, br)
     Ycount = 0
     Pcount = 0
     for y in range(Ymin, Ymax + 1):

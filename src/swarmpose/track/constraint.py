@@ -25,7 +25,7 @@ __all__ = ["PriorsConstraint"]
 
 #: Hash of the kernel sources this module's cached kernel calls (body/priors.py and what it calls,
 #: optim/operators.py): numba's cache sees edits to this file only (tests/test_numba_cache.py gives the value).
-INLINED_SOURCES_SHA1 = "208d3af1c7c4675a"
+INLINED_SOURCES_SHA1 = "f2bef33967649ee3"
 
 
 class PriorsConstraint:
