@@ -21,6 +21,7 @@ import numba as nb
 import numpy as np
 
 from swarmpose.body.kinematics import fk_pose_into
+from swarmpose.body.priors import segment_distance2
 from swarmpose.fitness.threads import fetch_add, store_release
 from swarmpose.render._kernels import (
     axis_depth_at,
@@ -36,7 +37,7 @@ from swarmpose.render._kernels import (
 #: fitness/threads.py).
 #: numba's cache sees edits to this file only, so an edit there must change this line (or cached kernels keep
 #: running the old code); tests/test_numba_cache.py says when and gives the new value.
-INLINED_SOURCES_SHA1 = "ca04273adfc8d32e"
+INLINED_SOURCES_SHA1 = "dc193fabdd0c63b9"
 
 __all__ = ["eval_claim", "eval_claim_go", "eval_kernel", "eval_share", "row_prefix_sums"]
 
@@ -66,7 +67,27 @@ def _edge_point(x, y, z, k, c, edges, valid, K, poly, nvs, bbox, axis, orient, a
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
-def line_occluders(px, py, pz, qx, qy, qz, k, valid, K, poly, nvs, bbox, axis, orient, occ, t_in, t_out):
+def cone_reach(k, poly, nvs, axis):
+    """The largest distance of outline ``k``'s vertices from its projected axis segment: the outline lies in the
+    capsule of that radius around the axis (used to pass over lines that cannot meet it)."""
+    ax = axis[k, 0, 0]
+    ay = axis[k, 0, 1]
+    dx = axis[k, 1, 0] - ax
+    dy = axis[k, 1, 1] - ay
+    L2 = dx * dx + dy * dy
+    r2 = 0.0
+    for i in range(nvs[k]):
+        ux = poly[k, i, 0] - ax
+        uy = poly[k, i, 1] - ay
+        t = min(max((ux * dx + uy * dy) / L2, 0.0), 1.0) if L2 > 1e-12 else 0.0
+        ex = ux - t * dx
+        ey = uy - t * dy
+        r2 = max(r2, ex * ex + ey * ey)
+    return math.sqrt(r2)
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def line_occluders(px, py, pz, qx, qy, qz, k, valid, K, poly, nvs, bbox, axis, orient, reach, occ, t_in, t_out):
     """The cones that can hide part of cone ``k``'s silhouette line ``p -> q``: drawn (``valid``), their
     axis nearer somewhere than the line, their outline covering the parameter interval ``[t_in, t_out]`` of
     the line (Cyrus-Beck, :func:`swarmpose.render._kernels.clip_segment`). Written to ``occ[:m]``,
@@ -76,6 +97,12 @@ def line_occluders(px, py, pz, qx, qy, qz, k, valid, K, poly, nvs, bbox, axis, o
     for j in range(K):
         # cone j can hide a sample only if it is drawn and its axis is nearer somewhere than the line
         if j == k or not valid[j] or min(axis[j, 0, 2], axis[j, 1, 2]) >= zmax:
+            continue
+        # outline j lies within reach[j] of its projected axis: a line farther away cannot meet it (the margin
+        # is far above rounding, so the test never rejects a line that clip_segment finds inside)
+        r = reach[j] + 1e-3
+        if segment_distance2(px, py, 0.0, qx, qy, 0.0, axis[j, 0, 0], axis[j, 0, 1], 0.0, axis[j, 1, 0],
+                             axis[j, 1, 1], 0.0) > r * r:
             continue
         a, b = clip_segment(px, py, qx, qy, j, poly, nvs, bbox, orient)
         if a <= b:
@@ -100,7 +127,7 @@ def line_sample(i, n, px, py, pz, qx, qy, qz, m, occ, t_in, t_out, axis):
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
-def _edge_line(px, py, pz, qx, qy, qz, spacing, k, c, edges, valid, K, poly, nvs, bbox, axis, orient,
+def _edge_line(px, py, pz, qx, qy, qz, spacing, k, c, edges, valid, K, poly, nvs, bbox, axis, orient, reach,
                occ, t_in, t_out):
     """Samples at ``t = (i + 1/2) / n`` on the silhouette line ``p -> q`` of cone ``k``.
 
@@ -111,7 +138,8 @@ def _edge_line(px, py, pz, qx, qy, qz, spacing, k, c, edges, valid, K, poly, nvs
     """
     L = math.sqrt((qx - px) * (qx - px) + (qy - py) * (qy - py))
     n = n_samples(L, spacing)
-    m = line_occluders(px, py, pz, qx, qy, qz, k, valid, K, poly, nvs, bbox, axis, orient, occ, t_in, t_out)
+    m = line_occluders(px, py, pz, qx, qy, qz, k, valid, K, poly, nvs, bbox, axis, orient, reach, occ, t_in,
+                       t_out)
     s1 = 0.0
     s2 = 0.0
     cnt = 0.0
@@ -223,8 +251,8 @@ def _region(k, nv, spacing, c, sil, poly, sides, axis, info, acc):
 @nb.njit(cache=True, nogil=True)
 def _measure_view(n, c, T, joint, start, end, semi_a, semi_b, scale, Rc, tc, cam, ctab, stab, near,
                   prefix, sil, edges, edge_mask, top_cone, spacing, region_spacing, do_sil, do_edge, do_region,
-                  counts, sums, poly, sides, axis, info, bbox, orient, nvs, valid, cnt, bl, br, occ, t_in, t_out,
-                  acc, racc):
+                  counts, sums, poly, sides, axis, info, bbox, orient, reach, nvs, valid, cnt, bl, br, occ, t_in,
+                  t_out, acc, racc):
     """Pose ``n`` (its joint transforms ``T``) in view ``c``: ``counts[n, c]`` and ``sums[n, c]``; the rest
     is scratch."""
     K = joint.shape[0]
@@ -234,6 +262,8 @@ def _measure_view(n, c, T, joint, start, end, semi_a, semi_b, scale, Rc, tc, cam
         nvs[k] = cone_outline(T, joint, start, end, semi_a, semi_b, scale, Rc[c], tc[c], cam[c],
                               ctab, stab, near, k, poly, sides, axis, info, bbox, orient)
         valid[k] = nvs[k] > 0
+        if do_edge and valid[k]:
+            reach[k] = cone_reach(k, poly, nvs, axis)
     y_ = 0
     p_ = 0
     if do_sil:
@@ -250,7 +280,7 @@ def _measure_view(n, c, T, joint, start, end, semi_a, semi_b, scale, Rc, tc, cam
                     e1, e2, e3 = _edge_line(sides[k, sd, 0, 0], sides[k, sd, 0, 1], sides[k, sd, 0, 2],
                                             sides[k, sd, 1, 0], sides[k, sd, 1, 1], sides[k, sd, 1, 2],
                                             spacing, k, c, edges, valid, K, poly, nvs, bbox, axis,
-                                            orient, occ, t_in, t_out)
+                                            orient, reach, occ, t_in, t_out)
                     acc[0] += e1
                     acc[1] += e2
                     acc[2] += e3
@@ -273,7 +303,7 @@ def _measure_view(n, c, T, joint, start, end, semi_a, semi_b, scale, Rc, tc, cam
 def _scratch(K, H, P):
     """The per-thread scratch arrays of :func:`_measure_view`."""
     return (np.empty((K, P, 3)), np.empty((K, 2, 2, 3)), np.empty((K, 2, 3)), np.empty((K, 4), np.int64),
-            np.empty((K, 4)), np.empty(K), np.empty(K, np.int64), np.empty(K, np.bool_), np.empty(H, np.int32),
+            np.empty((K, 4)), np.empty(K), np.zeros(K), np.empty(K, np.int64), np.empty(K, np.bool_), np.empty(H, np.int32),
             np.empty((H, K), np.int32), np.empty((H, K), np.int32), np.empty(K, np.int64), np.empty(K),
             np.empty(K), np.empty(3), np.empty(2))
 
@@ -297,12 +327,13 @@ def eval_share(idx, poses, parents, offsets, rot_axis, rot_sign, rot_param, tran
     Ts = np.empty((mine, J, 3, 4))
     for i in range(mine):
         fk_pose_into(poses[idx[i]], parents, offsets, rot_axis, rot_sign, rot_param, trans_param, Ts[i])
-    poly, sides, axis, info, bbox, orient, nvs, valid, cnt, bl, br, occ, t_in, t_out, acc, racc = _scratch(K, H, P)
+    poly, sides, axis, info, bbox, orient, reach, nvs, valid, cnt, bl, br, occ, t_in, t_out, acc, racc = _scratch(
+        K, H, P)
     for c in range(C):  # views outside: one view's prefix sums and edge map stay in cache
         for i in range(mine):
             _measure_view(idx[i], c, Ts[i], joint, start, end, semi_a, semi_b, scale, Rc, tc, cam, ctab, stab,
                           near, prefix, sil, edges, edge_mask, top_cone, spacing, region_spacing, do_sil, do_edge,
-                          do_region, counts, sums, poly, sides, axis, info, bbox, orient, nvs, valid, cnt, bl, br,
+                          do_region, counts, sums, poly, sides, axis, info, bbox, orient, reach, nvs, valid, cnt, bl, br,
                           occ, t_in, t_out, acc, racc)
 
 
@@ -323,7 +354,8 @@ def eval_claim(claim, done, poses, parents, offsets, rot_axis, rot_sign, rot_par
     P = 2 * ctab.shape[0] + 4
     Ts = np.empty((N, J, 3, 4))
     have = np.zeros(N, np.bool_)  # the joint transforms this thread has computed
-    poly, sides, axis, info, bbox, orient, nvs, valid, cnt, bl, br, occ, t_in, t_out, acc, racc = _scratch(K, H, P)
+    poly, sides, axis, info, bbox, orient, reach, nvs, valid, cnt, bl, br, occ, t_in, t_out, acc, racc = _scratch(
+        K, H, P)
     while True:
         u = fetch_add(claim, 0, 1)
         if u >= N * C:
@@ -335,7 +367,7 @@ def eval_claim(claim, done, poses, parents, offsets, rot_axis, rot_sign, rot_par
             have[n] = True
         _measure_view(n, c, Ts[n], joint, start, end, semi_a, semi_b, scale, Rc, tc, cam, ctab, stab, near,
                       prefix, sil, edges, edge_mask, top_cone, spacing, region_spacing, do_sil, do_edge, do_region,
-                      counts, sums, poly, sides, axis, info, bbox, orient, nvs, valid, cnt, bl, br, occ, t_in,
+                      counts, sums, poly, sides, axis, info, bbox, orient, reach, nvs, valid, cnt, bl, br, occ, t_in,
                       t_out, acc, racc)
         fetch_add(done, 0, 1)
 

@@ -26,7 +26,6 @@ import numba as nb
 import numpy as np
 
 from swarmpose.body.kinematics import fk_pose_into
-from swarmpose.body.priors import segment_distance2
 from swarmpose.fitness._numba import (
     _arc_segment,
     _edge_arc,
@@ -35,6 +34,7 @@ from swarmpose.fitness._numba import (
     _scratch,
     arc_length,
     arc_point,
+    cone_reach,
     line_occluders,
     line_sample,
 )
@@ -42,7 +42,7 @@ from swarmpose.fitness.threads import fetch_add, store_release
 from swarmpose.render._kernels import bucket_outline, cone_outline, hidden, n_samples, pixel_value, row_range
 
 #: Hash of the kernel sources this module's cached kernels inline (see :mod:`swarmpose.fitness._numba`).
-INLINED_SOURCES_SHA1 = "3cf371eb13011a55"
+INLINED_SOURCES_SHA1 = "f6c3b802a01b8c96"
 
 __all__ = ["stay_base", "eval_claim_moving", "eval_claim_moving_go"]
 
@@ -55,8 +55,9 @@ def stay_base(T0, moving, joint, start, end, semi_a, semi_b, scale, Rc, tc, cam,
     Returns
     -------
     b_poly (C, K, P, 3), b_sides (C, K, 2, 2, 3), b_axis (C, K, 2, 3), b_info (C, K, 4), b_bbox (C, K, 4),
-    b_orient (C, K), b_nvs (C, K), b_valid (C, K)
-        Every cone's outline in every view (:func:`swarmpose.render._kernels.cone_outline`).
+    b_orient (C, K), b_reach (C, K), b_nvs (C, K), b_valid (C, K)
+        Every cone's outline in every view (:func:`swarmpose.render._kernels.cone_outline`) and its reach
+        (:func:`swarmpose.fitness._numba.cone_reach`).
     s_cnt (C, H), s_l (C, H, K), s_r (C, H, K)
         Per row the staying outlines' spans merged: ``s_cnt`` disjoint spans ``[s_l, s_r]``, sorted.
     s_rows (C, H, 2), s_tot (C, 2)
@@ -82,6 +83,7 @@ def stay_base(T0, moving, joint, start, end, semi_a, semi_b, scale, Rc, tc, cam,
     b_info = np.zeros((C, K, 4), np.int64)
     b_bbox = np.zeros((C, K, 4))
     b_orient = np.zeros((C, K))
+    b_reach = np.zeros((C, K))
     b_nvs = np.zeros((C, K), np.int64)
     b_valid = np.zeros((C, K), np.bool_)
     s_cnt = np.zeros((C, H), np.int32)
@@ -103,6 +105,8 @@ def stay_base(T0, moving, joint, start, end, semi_a, semi_b, scale, Rc, tc, cam,
                                        stab, near, k, b_poly[c], b_sides[c], b_axis[c], b_info[c], b_bbox[c],
                                        b_orient[c])
             b_valid[c, k] = b_nvs[c, k] > 0
+            if b_valid[c, k]:
+                b_reach[c, k] = cone_reach(k, b_poly[c], b_nvs[c], b_axis[c])
             if stay[k] and b_valid[c, k] and edge_mask[k] and b_info[c, k, 0] == 1:
                 for sd in range(2):
                     dx = b_sides[c, k, sd, 1, 0] - b_sides[c, k, sd, 0, 0]
@@ -168,7 +172,7 @@ def stay_base(T0, moving, joint, start, end, semi_a, semi_b, scale, Rc, tc, cam,
                 n = l_n[c, k, sd]
                 o = l_off[c, k, sd]
                 m = line_occluders(px, py, pz, qx, qy, qz, k, valid_s, K, poly, nvs, b_bbox[c], b_axis[c],
-                                   b_orient[c], occ, t_in, t_out)
+                                   b_orient[c], b_reach[c], occ, t_in, t_out)
                 s1 = 0.0
                 s2 = 0.0
                 cn = 0.0
@@ -203,7 +207,7 @@ def stay_base(T0, moving, joint, start, end, semi_a, semi_b, scale, Rc, tc, cam,
                 arc_xyz[o + i, 2] = z
                 arc_hid[o + i] = hidden(x, y, z, k, valid_s, K, poly, nvs, b_bbox[c], b_axis[c], b_orient[c])
                 arc_p[o + i] = pixel_value(edges, c, x, y)
-    return (b_poly, b_sides, b_axis, b_info, b_bbox, b_orient, b_nvs, b_valid, s_cnt, s_l, s_r, s_rows, s_tot,
+    return (b_poly, b_sides, b_axis, b_info, b_bbox, b_orient, b_reach, b_nvs, b_valid, s_cnt, s_l, s_r, s_rows, s_tot,
             l_n, l_off, l_sum, smp_p, smp_hid, a_n, a_off, arc_xyz, arc_p, arc_hid)
 
 
@@ -249,33 +253,13 @@ def _moving_counts(c, valid_m, poly, nvs, K, H, W, prefix, cnt, bl, br, s_cnt, s
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
-def _reach(k, poly, nvs, axis):
-    """The largest distance of outline ``k``'s vertices from its projected axis segment: the outline lies in the
-    capsule of that radius around the axis."""
-    r2 = 0.0
-    for i in range(nvs[k]):
-        d2 = segment_distance2(poly[k, i, 0], poly[k, i, 1], 0.0, poly[k, i, 0], poly[k, i, 1], 0.0,
-                               axis[k, 0, 0], axis[k, 0, 1], 0.0, axis[k, 1, 0], axis[k, 1, 1], 0.0)
-        r2 = max(r2, d2)
-    return math.sqrt(r2)
-
-
-@nb.njit(cache=True, nogil=True, inline="always")
 def _staying_line(c, k, sd, px, py, pz, qx, qy, qz, valid_m, reach, K, poly, nvs, bbox, axis, orient, occ, t_in,
                   t_out, l_n, l_off, l_sum, smp_p, smp_hid):
     """``(sum p, sum (1 - p)^2, count)`` of staying cone ``k``'s line ``sd`` in view ``c``: its stored sums where
     no moving cone (``valid_m``) can hide part of it, else its stored samples summed again in order, those a
     moving cone hides left out as well."""
-    near = False  # can a moving outline reach the line? (its capsule, with a margin far above rounding)
-    for j in range(K):
-        if valid_m[j]:
-            r = reach[j] + 1e-3
-            if segment_distance2(px, py, 0.0, qx, qy, 0.0, axis[j, 0, 0], axis[j, 0, 1], 0.0, axis[j, 1, 0],
-                                 axis[j, 1, 1], 0.0) <= r * r:
-                near = True
-    if not near:
-        return l_sum[c, k, sd, 0], l_sum[c, k, sd, 1], l_sum[c, k, sd, 2]
-    m = line_occluders(px, py, pz, qx, qy, qz, k, valid_m, K, poly, nvs, bbox, axis, orient, occ, t_in, t_out)
+    m = line_occluders(px, py, pz, qx, qy, qz, k, valid_m, K, poly, nvs, bbox, axis, orient, reach, occ, t_in,
+                       t_out)
     if m == 0:
         return l_sum[c, k, sd, 0], l_sum[c, k, sd, 1], l_sum[c, k, sd, 2]
     n = l_n[c, k, sd]
@@ -315,7 +299,7 @@ def _staying_arc(c, k, valid_m, K, poly, nvs, bbox, axis, orient, a_n, a_off, ar
 def eval_claim_moving(claim, done, full, poses, moving, parents, offsets, rot_axis, rot_sign, rot_param, trans_param,
                       joint, start, end, semi_a, semi_b, scale, Rc, tc, cam, ctab, stab, near,
                       prefix, sil, edges, edge_mask, top_cone, spacing, region_spacing, do_sil, do_edge,
-                      T0, b_poly, b_sides, b_axis, b_info, b_bbox, b_orient, b_nvs, b_valid, s_cnt, s_l, s_r,
+                      T0, b_poly, b_sides, b_axis, b_info, b_bbox, b_orient, b_reach, b_nvs, b_valid, s_cnt, s_l, s_r,
                       s_rows, s_tot, l_n, l_off, l_sum, smp_p, smp_hid, a_n, a_off, arc_xyz, arc_p, arc_hid, counts, sums):
     """:func:`swarmpose.fitness._numba.eval_claim` for a batch whose poses move only the cones ``moving (K,)``
     against the first pose (its transforms ``T0``; the base ``b_poly`` ... ``smp_hid`` from :func:`stay_base`):
@@ -333,9 +317,9 @@ def eval_claim_moving(claim, done, full, poses, moving, parents, offsets, rot_ax
     Ts = np.empty((N, J, 3, 4))
     have = np.zeros(N, np.bool_)
     stays = np.ones(N, np.bool_)
-    poly, sides, axis, info, bbox, orient, nvs, valid, cnt, bl, br, occ, t_in, t_out, acc, racc = _scratch(K, H, P)
+    poly, sides, axis, info, bbox, orient, reach, nvs, valid, cnt, bl, br, occ, t_in, t_out, acc, racc = _scratch(
+        K, H, P)
     valid_m = np.zeros(K, np.bool_)
-    reach = np.zeros(K)
     view = -1  # the view whose staying outlines the scratch holds
     while True:
         u = fetch_add(claim, 0, 1)
@@ -356,8 +340,8 @@ def eval_claim_moving(claim, done, full, poses, moving, parents, offsets, rot_ax
         if not stays[n]:
             _measure_view(n, c, Ts[n], joint, start, end, semi_a, semi_b, scale, Rc, tc, cam, ctab, stab, near,
                           prefix, sil, edges, edge_mask, top_cone, spacing, region_spacing, do_sil, do_edge, False,
-                          counts, sums, poly, sides, axis, info, bbox, orient, nvs, valid, cnt, bl, br, occ, t_in,
-                          t_out, acc, racc)
+                          counts, sums, poly, sides, axis, info, bbox, orient, reach, nvs, valid, cnt, bl, br, occ,
+                          t_in, t_out, acc, racc)
             fetch_add(full, 0, 1)
             view = -1
         else:
@@ -368,6 +352,7 @@ def eval_claim_moving(claim, done, full, poses, moving, parents, offsets, rot_ax
                 info[:] = b_info[c]
                 bbox[:] = b_bbox[c]
                 orient[:] = b_orient[c]
+                reach[:] = b_reach[c]
                 nvs[:] = b_nvs[c]
                 valid[:] = b_valid[c]
                 view = c
@@ -377,7 +362,7 @@ def eval_claim_moving(claim, done, full, poses, moving, parents, offsets, rot_ax
                                           ctab, stab, near, k, poly, sides, axis, info, bbox, orient)
                     valid[k] = nvs[k] > 0
                     if valid[k]:
-                        reach[k] = _reach(k, poly, nvs, axis)
+                        reach[k] = cone_reach(k, poly, nvs, axis)
                 valid_m[k] = moving[k] and valid[k]
             y_ = 0
             p_ = 0
@@ -397,7 +382,7 @@ def eval_claim_moving(claim, done, full, poses, moving, parents, offsets, rot_ax
                             qx, qy, qz = sides[k, sd, 1, 0], sides[k, sd, 1, 1], sides[k, sd, 1, 2]
                             if moving[k]:
                                 e1, e2, e3 = _edge_line(px, py, pz, qx, qy, qz, spacing, k, c, edges, valid, K, poly, nvs,
-                                                        bbox, axis, orient, occ, t_in, t_out)
+                                                        bbox, axis, orient, reach, occ, t_in, t_out)
                             else:
                                 e1, e2, e3 = _staying_line(c, k, sd, px, py, pz, qx, qy, qz, valid_m, reach, K,
                                                            poly, nvs, bbox, axis, orient, occ, t_in, t_out, l_n,
@@ -424,12 +409,12 @@ def eval_claim_moving(claim, done, full, poses, moving, parents, offsets, rot_ax
 def eval_claim_moving_go(go, seq, claim, done, full, poses, moving, parents, offsets, rot_axis, rot_sign, rot_param,
                          trans_param, joint, start, end, semi_a, semi_b, scale, Rc, tc, cam, ctab, stab, near,
                          prefix, sil, edges, edge_mask, top_cone, spacing, region_spacing, do_sil, do_edge,
-                         T0, b_poly, b_sides, b_axis, b_info, b_bbox, b_orient, b_nvs, b_valid, s_cnt, s_l, s_r,
+                         T0, b_poly, b_sides, b_axis, b_info, b_bbox, b_orient, b_reach, b_nvs, b_valid, s_cnt, s_l, s_r,
                          s_rows, s_tot, l_n, l_off, l_sum, smp_p, smp_hid, a_n, a_off, arc_xyz, arc_p, arc_hid, counts, sums):
     """:func:`eval_claim_moving` after ``go[0] = seq`` (see :func:`swarmpose.fitness._numba.eval_claim_go`)."""
     store_release(go, 0, seq)
     eval_claim_moving(claim, done, full, poses, moving, parents, offsets, rot_axis, rot_sign, rot_param, trans_param,
                       joint, start, end, semi_a, semi_b, scale, Rc, tc, cam, ctab, stab, near,
                       prefix, sil, edges, edge_mask, top_cone, spacing, region_spacing, do_sil, do_edge,
-                      T0, b_poly, b_sides, b_axis, b_info, b_bbox, b_orient, b_nvs, b_valid, s_cnt, s_l, s_r,
+                      T0, b_poly, b_sides, b_axis, b_info, b_bbox, b_orient, b_reach, b_nvs, b_valid, s_cnt, s_l, s_r,
                       s_rows, s_tot, l_n, l_off, l_sum, smp_p, smp_hid, a_n, a_off, arc_xyz, arc_p, arc_hid, counts, sums)
