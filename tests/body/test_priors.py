@@ -211,7 +211,7 @@ def test_the_fused_check_agrees_with_the_plain_one(spec, limits, collisions):
 def test_segment_distance_is_the_closest_approach():
     """The early rejection of a collision pair reads the distance between the two cones' axes: against the
     minimum over a fine grid of both segments' points, including parallel, crossing and point-like segments."""
-    from swarmpose.body.priors import _segment_distance2
+    from swarmpose.body.priors import segment_distance2
 
     rng = np.random.default_rng(3)
     cases = [rng.normal(0, 100, 12) for _ in range(200)]
@@ -227,6 +227,6 @@ def test_segment_distance_is_the_closest_approach():
         pa = a + g[:, None] * (b - a)
         pb = r + g[:, None] * (t - r)
         grid = np.sqrt(((pa[:, None] - pb[None]) ** 2).sum(-1).min())
-        exact = np.sqrt(_segment_distance2(*a, *b, *r, *t))
+        exact = np.sqrt(segment_distance2(*a, *b, *r, *t))
         assert exact <= grid + 1e-9
         assert grid - exact <= 0.01 * (np.linalg.norm(b - a) + np.linalg.norm(t - r)) + 1e-9

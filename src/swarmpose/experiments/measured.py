@@ -32,21 +32,22 @@ def _track(algo: str, fps: int, runs: int = 5) -> str:
 
 
 MEASURED: dict[str, Measured] = {
-    "sppso": Measured(72.4, 20.0, 5.6, 5, _track("sppso", 20)),
+    "sppso": Measured(72.4, 20.0, 8.6, 5, _track("sppso", 20)),
     "sppso3": Measured(68.5, 20.0, None, 5, _track("sppso3", 20)),
     "pso-global": Measured(84.8, 20.0, None, 5, _track("pso-global", 20)),
     "hard2": Measured(87.4, 20.0, None, 5, _track("hard2", 20)),
     # thesis Fig. 6.14 runs the 12 hard partitions at 60 fps only, as the thesis-partitions suite does
     "hpso12": Measured(81.7, 60.0, 1.3, 5, _track("hpso12", 60)),
     "apf": Measured(85.4, 20.0, None, 5, _track("apf", 20)),
-    "apf-adaptive": Measured(50.0, 20.0, 6.1, 5, _track("apf-adaptive", 20)),
-    "apf-dr05": Measured(30.6, 20.0, 3.5, 5, _track("apf-dr05", 20)),
+    "apf-adaptive": Measured(50.0, 20.0, 9.9, 5, _track("apf-adaptive", 20)),
+    "apf-dr05": Measured(30.6, 20.0, 5.6, 5, _track("apf-dr05", 20)),
     # on the synthetic 2D marker detections, with the default (symmetric reprojection) fitness
     "aapso": Measured(14.8, 25.0, None, 5, _track("aapso", 25)),
     "aapso-fixed": Measured(15.2, 25.0, None, 5, "swarmpose compare markers-reprojection"),
-    # 2 runs (git d556adc); `swarmpose compare ablation --runs 5` gives it 25.7 (23.8-28.9) on the walk
-    "refined": Measured(24.8, 20.0, 4.1, 2, _track("refined", 20, runs=2)),
-    "refined-limbs": Measured(20.2, 20.0, 1.9, 3, _track("refined-limbs", 20, runs=3)),
+    # 2 runs (git d556adc); `swarmpose compare ablation --runs 5` gives it 25.7 (23.8-28.9) on the walk; the frames/s
+    # of these rows and of sppso, apf-adaptive and apf-dr05 measured again at git 4cbe663, in one session
+    "refined": Measured(24.8, 20.0, 6.9, 2, _track("refined", 20, runs=2)),
+    "refined-limbs": Measured(20.9, 20.0, 4.3, 3, _track("refined-limbs", 20, runs=3)),
     # the default; `swarmpose demo` tracks the same runs
-    "refined-heading": Measured(21.8, 20.0, 1.8, 3, _track("refined-heading", 20, runs=3)),
+    "refined-heading": Measured(21.8, 20.0, 3.9, 3, _track("refined-heading", 20, runs=3)),
 }
