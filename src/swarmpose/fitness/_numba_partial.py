@@ -9,8 +9,10 @@ counts; their edge samples, each with its pixel value and whether another stayin
 * silhouette counts: the staying cones' totals plus, on each row a moving cone covers, the union of the row's
   spans minus the staying spans' own counts (integers: exact);
 * edge sums: a staying cone's line is summed again sample by sample, in the same order, only where a moving
-  cone can hide part of it; otherwise its stored sum is the same sum. A moving cone's lines, and the top
-  cone's end arc, are measured as :func:`swarmpose.fitness._numba._measure_view` measures them.
+  outline can hide part of it (:func:`swarmpose.fitness._numba.line_occluders`); otherwise its stored sum is the
+  same sum. A staying top cone's end arc adds its stored samples one by one, those a moving cone hides left
+  out. A moving cone's lines and end arc are measured as :func:`swarmpose.fitness._numba._measure_view`
+  measures them.
 
 Every float sum adds the same values in the same order as :func:`swarmpose.fitness._numba.eval_share`, so the
 results are equal to the last bit (tested). A pose whose staying cones' transforms differ from the first

@@ -341,6 +341,10 @@ class NumbaBackend(_BackendBase):
 
     def _measure_moving(self, prepared: PreparedFrame, p: np.ndarray, request: Request, moving: np.ndarray,
                         args: tuple, nth: int, counts: np.ndarray, sums: np.ndarray) -> None:
+        """The batch ``p`` through :func:`~swarmpose.fitness._numba_partial.eval_claim_moving` (``args``: the full
+        kernel's arguments), the staying cones' base measured by
+        :func:`~swarmpose.fitness._numba_partial.stay_base` or kept from the last batch when it had the same frame,
+        request, moving cones and staying transforms."""
         from swarmpose.body.kinematics import fk_pose_into
         from swarmpose.fitness._numba_partial import eval_claim_moving, eval_claim_moving_go, stay_base
 
