@@ -25,6 +25,7 @@ from swarmpose.body.priors import segment_distance2
 from swarmpose.fitness.threads import fetch_add, store_release
 from swarmpose.render._kernels import (
     axis_depth_at,
+    axis_param,
     clip_segment,
     cone_outline,
     hidden,
@@ -37,7 +38,7 @@ from swarmpose.render._kernels import (
 #: fitness/threads.py).
 #: numba's cache sees edits to this file only, so an edit there must change this line (or cached kernels keep
 #: running the old code); tests/test_numba_cache.py says when and gives the new value.
-INLINED_SOURCES_SHA1 = "dc193fabdd0c63b9"
+INLINED_SOURCES_SHA1 = "22a1dabd078f72d9"
 
 __all__ = ["eval_claim", "eval_claim_go", "eval_kernel", "eval_share", "row_prefix_sums"]
 
@@ -70,18 +71,13 @@ def _edge_point(x, y, z, k, c, edges, valid, K, poly, nvs, bbox, axis, orient, a
 def cone_reach(k, poly, nvs, axis):
     """The largest distance of outline ``k``'s vertices from its projected axis segment: the outline lies in the
     capsule of that radius around the axis (used to pass over lines that cannot meet it)."""
-    ax = axis[k, 0, 0]
-    ay = axis[k, 0, 1]
-    dx = axis[k, 1, 0] - ax
-    dy = axis[k, 1, 1] - ay
-    L2 = dx * dx + dy * dy
     r2 = 0.0
     for i in range(nvs[k]):
-        ux = poly[k, i, 0] - ax
-        uy = poly[k, i, 1] - ay
-        t = min(max((ux * dx + uy * dy) / L2, 0.0), 1.0) if L2 > 1e-12 else 0.0
-        ex = ux - t * dx
-        ey = uy - t * dy
+        x = poly[k, i, 0]
+        y = poly[k, i, 1]
+        s = axis_param(k, x, y, axis)
+        ex = x - (axis[k, 0, 0] + s * (axis[k, 1, 0] - axis[k, 0, 0]))
+        ey = y - (axis[k, 0, 1] + s * (axis[k, 1, 1] - axis[k, 0, 1]))
         r2 = max(r2, ex * ex + ey * ey)
     return math.sqrt(r2)
 

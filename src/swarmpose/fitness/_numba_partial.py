@@ -41,10 +41,10 @@ from swarmpose.fitness._numba import (
     line_sample,
 )
 from swarmpose.fitness.threads import fetch_add, store_release
-from swarmpose.render._kernels import bucket_outline, cone_outline, hidden, n_samples, pixel_value, row_range
+from swarmpose.render._kernels import bucket_outlines, cone_outline, hidden, n_samples, pixel_value
 
 #: Hash of the kernel sources this module's cached kernels inline (see :mod:`swarmpose.fitness._numba`).
-INLINED_SOURCES_SHA1 = "f6c3b802a01b8c96"
+INLINED_SOURCES_SHA1 = "7c6f054b287f3bd5"
 
 __all__ = ["stay_base", "eval_claim_moving", "eval_claim_moving_go"]
 
@@ -139,13 +139,8 @@ def stay_base(T0, moving, joint, start, end, semi_a, semi_b, scale, Rc, tc, cam,
         nvs = b_nvs[c]
         valid_s = b_valid[c] & stay
         # the staying outlines' row spans, merged
-        Ymin, Ymax = row_range(poly, nvs, valid_s, K, H)
-        for y in range(max(Ymin, 0), Ymax + 1):
-            cnt[y] = 0
-        for k in range(K):
-            if valid_s[k] and nvs[k] >= 3:
-                bucket_outline(poly, k, nvs[k], H, W, cnt, bl, br)
-        for y in range(max(Ymin, 0), Ymax + 1):
+        Ymin, Ymax = bucket_outlines(poly, nvs, valid_s, K, H, W, cnt, bl, br)
+        for y in range(Ymin, Ymax + 1):
             M = -1
             m = 0
             for i in range(cnt[y]):
@@ -219,13 +214,8 @@ def _moving_counts(c, valid_m, poly, nvs, K, H, W, prefix, cnt, bl, br, s_cnt, s
     covers, the union of its spans with the row's staying spans in place of the staying spans' own counts."""
     y_ = s_tot[c, 0]
     p_ = s_tot[c, 1]
-    Ymin, Ymax = row_range(poly, nvs, valid_m, K, H)
-    for y in range(max(Ymin, 0), Ymax + 1):
-        cnt[y] = 0
-    for k in range(K):
-        if valid_m[k] and nvs[k] >= 3:
-            bucket_outline(poly, k, nvs[k], H, W, cnt, bl, br)
-    for y in range(max(Ymin, 0), Ymax + 1):
+    Ymin, Ymax = bucket_outlines(poly, nvs, valid_m, K, H, W, cnt, bl, br)
+    for y in range(Ymin, Ymax + 1):
         nm = cnt[y]
         if nm == 0:
             continue

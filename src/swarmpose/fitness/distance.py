@@ -40,7 +40,7 @@ from swarmpose.render._kernels import project_cam_point
 
 #: Hash of the kernel sources this module's cached kernels inline (render/_kernels.py); see
 #: tests/test_numba_cache.py (numba's cache does not see edits to other files).
-INLINED_SOURCES_SHA1 = "a0426e36f21dfd5d"
+INLINED_SOURCES_SHA1 = "7ffc5a04828d3360"
 
 __all__ = ["DistanceMaps", "FULL_WIDTH_PX", "DEFAULT_TAU_PX", "DEFAULT_STRIDE_PX", "prepare_distance_maps", "distance_terms",
            "distance_terms_reference", "part_distances"]

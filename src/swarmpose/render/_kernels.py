@@ -355,6 +355,19 @@ def row_range(poly, nvs, valid, K, H):
     return Ymin, Ymax
 
 
+@nb.njit(cache=True, nogil=True, inline="always")
+def bucket_outlines(poly, nvs, valid, K, H, W, cnt, bl, br):
+    """The row spans of every drawn outline (``valid``, three vertices or more) in the rows' buckets ``cnt, bl,
+    br`` (emptied first over the rows they can cover): returns those rows ``(Ymin, Ymax)`` (:func:`row_range`)."""
+    Ymin, Ymax = row_range(poly, nvs, valid, K, H)
+    for y in range(Ymin, Ymax + 1):
+        cnt[y] = 0
+    for k in range(K):
+        if valid[k] and nvs[k] >= 3:
+            bucket_outline(poly, k, nvs[k], H, W, cnt, bl, br)
+    return Ymin, Ymax
+
+
 @nb.njit(cache=True, nogil=True)
 def silhouette_counts(poly, nvs, valid, K, H, W, prefix, v, cnt, bl, br):
     """``(Y, P)`` of the union of the drawn outlines in view ``v`` by the scanline rule.
@@ -371,16 +384,9 @@ def silhouette_counts(poly, nvs, valid, K, H, W, prefix, v, cnt, bl, br):
 
     Scratch: ``cnt (H,)``, ``bl, br (H, K)`` integer.
     """
-    Ymin, Ymax = row_range(poly, nvs, valid, K, H)
+    Ymin, Ymax = bucket_outlines(poly, nvs, valid, K, H, W, cnt, bl, br)
     if Ymin > Ymax:
         return 0, 0
-    for y in range(Ymin, Ymax + 1):
-        cnt[y] = 0
-    for k in range(K):
-        n = nvs[k]
-        if not valid[k] or n < 3:
-            continue
-        bucket_outline(poly, k, n, H, W, cnt, bl, br)
     Ycount = 0
     Pcount = 0
     for y in range(Ymin, Ymax + 1):
@@ -465,9 +471,9 @@ def clip_segment(px, py, qx, qy, j, poly, nvs, bbox, orient):
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
-def axis_depth_at(j, x, y, axis):
-    """Depth of cone ``j``'s axis at the orthogonal projection of ``(x, y)`` onto its projected axis
-    (clamped to the segment; ``t = 1/2`` for a point-like axis)."""
+def axis_param(j, x, y, axis):
+    """The parameter ``t`` in ``[0, 1]`` of the orthogonal projection of ``(x, y)`` onto cone ``j``'s projected
+    axis (``t = 1/2`` for a point-like axis)."""
     ax = axis[j, 0, 0]
     ay = axis[j, 0, 1]
     dx = axis[j, 1, 0] - ax
@@ -477,6 +483,14 @@ def axis_depth_at(j, x, y, axis):
     if L2 > 1e-12:
         t = ((x - ax) * dx + (y - ay) * dy) / L2
         t = min(max(t, 0.0), 1.0)
+    return t
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def axis_depth_at(j, x, y, axis):
+    """Depth of cone ``j``'s axis at the orthogonal projection of ``(x, y)`` onto its projected axis
+    (clamped to the segment; ``t = 1/2`` for a point-like axis)."""
+    t = axis_param(j, x, y, axis)
     return axis[j, 0, 2] + t * (axis[j, 1, 2] - axis[j, 0, 2])
 
 

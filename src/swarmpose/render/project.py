@@ -19,7 +19,7 @@ from swarmpose.render._kernels import cone_outline, rim_tables
 #: Hash of the kernel sources this module's cached kernels inline (body/kinematics.py, render/_kernels.py).
 #: numba's cache sees edits to this file only, so an edit there must change this line (or cached kernels keep
 #: running the old code); tests/test_numba_cache.py says when and gives the new value.
-INLINED_SOURCES_SHA1 = "556deb351ceb1914"
+INLINED_SOURCES_SHA1 = "0eb66cc3dceab8a8"
 
 __all__ = ["ProjectedCones", "ConeTables", "cone_tables", "camera_tables", "project_cones",
            "DEFAULT_N_RIM", "DEFAULT_NEAR_MM"]
