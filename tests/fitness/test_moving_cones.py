@@ -95,8 +95,10 @@ def test_a_staying_cone_that_moves_is_measured_in_full(model, scene, true_pose):
     args = (p, *model.kin.as_tuple(), *fast.cones.as_tuple(), prepared.R, prepared.t, prepared.cam, fast._ctab,
             fast._stab, fast.near, prepared.prefix, prepared.silhouettes, prepared.edges, request.edge_mask, 0,
             5.0, 8.0, True, True, False)
-    fast._measure_moving(prepared, p, request, moving, args, 1, counts, sums)
+    joints = np.empty((30, 15, 3))
+    fast._measure_moving(prepared, p, request, moving, args, 1, fast._j15, joints, counts, sums)
     assert fast.last_full_items == 10 * 4  # the ten poses, in every view
+    assert np.array_equal(joints, model.joints15(poses))  # those measured in full and the others alike
     ref = full.measure(prepared, poses, request)
     assert np.array_equal(counts[..., 0], ref.overlap) and np.array_equal(counts[..., 1], ref.projected)
     assert np.array_equal(sums[..., :3], np.stack([ref.edge_sum, ref.edge_sq, ref.edge_count], axis=-1))
@@ -138,3 +140,21 @@ def test_batches_that_move_much_or_want_regions_are_measured_in_full(model, scen
     fast.measure(prepared, arm[:1], _request())
     assert fast.last_full_items == -1
     assert NumbaBackend(model, moving=False)._moving_cones(arm, _request()) is None
+
+
+@pytest.mark.parametrize("threads", ["pool", "prange", "serial"])
+def test_the_kernels_return_the_poses_joints(model, scene, true_pose, threads):
+    """``Request(joints=True)``: every path (the moving cones', the full kernel's, each thread mode) writes the
+    poses' 15 joints from its own kinematics, equal to ``BodyModel.joints15`` to the last bit; without it none.
+    The measurements are the same either way."""
+    rng = np.random.default_rng(17)
+    backend = NumbaBackend(model, threads=threads)
+    prepared = backend.prepare(scene)
+    limb = _group_batch(model, true_pose, "left_leg", 40, 3.0, rng)
+    whole = true_pose + rng.normal(0.0, 1.0, (40, model.n_params)) * model.sigma
+    for poses in (limb, whole, whole[:1]):
+        with_joints = backend.measure(prepared, poses, _request(joints=True))
+        assert np.array_equal(with_joints.joints, model.joints15(poses))
+        without = backend.measure(prepared, poses, _request())
+        assert without.joints is None
+        assert _same(with_joints, without)

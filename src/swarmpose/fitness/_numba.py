@@ -40,7 +40,7 @@ from swarmpose.render._kernels import (
 #: running the old code); tests/test_numba_cache.py says when and gives the new value.
 INLINED_SOURCES_SHA1 = "22a1dabd078f72d9"
 
-__all__ = ["eval_claim", "eval_claim_go", "eval_kernel", "eval_share", "row_prefix_sums"]
+__all__ = ["copy_joints", "eval_claim", "eval_claim_go", "eval_kernel", "eval_share", "row_prefix_sums"]
 
 
 @nb.njit(cache=True, nogil=True)
@@ -295,6 +295,17 @@ def _measure_view(n, c, T, joint, start, end, semi_a, semi_b, scale, Rc, tc, cam
     sums[n, c, 4] = racc[1]
 
 
+@nb.njit(cache=True, nogil=True, inline="always")
+def copy_joints(T, j15, out):
+    """``out[q] = T[j15[q], :, 3]``: the origins of the joint frames ``j15`` (a pose's 15 joints, as
+    :meth:`swarmpose.body.model.BodyModel.joints15` takes them from the same transforms)."""
+    for q in range(j15.shape[0]):
+        j = j15[q]
+        out[q, 0] = T[j, 0, 3]
+        out[q, 1] = T[j, 1, 3]
+        out[q, 2] = T[j, 2, 3]
+
+
 @nb.njit(cache=True, nogil=True)
 def _scratch(K, H, P):
     """The per-thread scratch arrays of :func:`_measure_view`."""
@@ -308,7 +319,7 @@ def _scratch(K, H, P):
 def eval_share(idx, poses, parents, offsets, rot_axis, rot_sign, rot_param, trans_param,
                joint, start, end, semi_a, semi_b, scale, Rc, tc, cam, ctab, stab, near,
                prefix, sil, edges, edge_mask, top_cone, spacing, region_spacing,
-               do_sil, do_edge, do_region, counts, sums):
+               do_sil, do_edge, do_region, j15, joints, counts, sums):
     """The poses ``poses[idx]`` of the batch (one thread's share; ``idx (M,)`` int64): see
     :func:`eval_kernel` for the arguments; results go to ``counts[idx]``, ``sums[idx]``.
 
@@ -323,6 +334,7 @@ def eval_share(idx, poses, parents, offsets, rot_axis, rot_sign, rot_param, tran
     Ts = np.empty((mine, J, 3, 4))
     for i in range(mine):
         fk_pose_into(poses[idx[i]], parents, offsets, rot_axis, rot_sign, rot_param, trans_param, Ts[i])
+        copy_joints(Ts[i], j15, joints[idx[i]])
     poly, sides, axis, info, bbox, orient, reach, nvs, valid, cnt, bl, br, occ, t_in, t_out, acc, racc = _scratch(
         K, H, P)
     for c in range(C):  # views outside: one view's prefix sums and edge map stay in cache
@@ -337,7 +349,7 @@ def eval_share(idx, poses, parents, offsets, rot_axis, rot_sign, rot_param, tran
 def eval_claim(claim, done, poses, parents, offsets, rot_axis, rot_sign, rot_param, trans_param,
                joint, start, end, semi_a, semi_b, scale, Rc, tc, cam, ctab, stab, near,
                prefix, sil, edges, edge_mask, top_cone, spacing, region_spacing,
-               do_sil, do_edge, do_region, counts, sums):
+               do_sil, do_edge, do_region, j15, joints, counts, sums):
     """The batch's (view, pose) items claimed one at a time, shared with other threads running the same
     function: item ``u`` is pose ``u % N`` in view ``u // N`` (views outside, as :func:`eval_share`); it is
     claimed by ``fetch_add(claim, 0, 1)`` and counted in ``done[0]`` once its results are written. The results
@@ -361,6 +373,8 @@ def eval_claim(claim, done, poses, parents, offsets, rot_axis, rot_sign, rot_par
         if not have[n]:
             fk_pose_into(poses[n], parents, offsets, rot_axis, rot_sign, rot_param, trans_param, Ts[n])
             have[n] = True
+        if c == 0:  # each pose's first item: written once, by one thread
+            copy_joints(Ts[n], j15, joints[n])
         _measure_view(n, c, Ts[n], joint, start, end, semi_a, semi_b, scale, Rc, tc, cam, ctab, stab, near,
                       prefix, sil, edges, edge_mask, top_cone, spacing, region_spacing, do_sil, do_edge, do_region,
                       counts, sums, poly, sides, axis, info, bbox, orient, reach, nvs, valid, cnt, bl, br, occ, t_in,
@@ -372,21 +386,21 @@ def eval_claim(claim, done, poses, parents, offsets, rot_axis, rot_sign, rot_par
 def eval_claim_go(go, seq, claim, done, poses, parents, offsets, rot_axis, rot_sign, rot_param, trans_param,
                   joint, start, end, semi_a, semi_b, scale, Rc, tc, cam, ctab, stab, near,
                   prefix, sil, edges, edge_mask, top_cone, spacing, region_spacing,
-                  do_sil, do_edge, do_region, counts, sums):
+                  do_sil, do_edge, do_region, j15, joints, counts, sums):
     """:func:`eval_claim` after ``go[0] = seq``, set once the GIL is released: a worker of
     :class:`swarmpose.fitness.threads.BatchThreads` that sees it starts claiming without waiting for the GIL."""
     store_release(go, 0, seq)
     eval_claim(claim, done, poses, parents, offsets, rot_axis, rot_sign, rot_param, trans_param,
                joint, start, end, semi_a, semi_b, scale, Rc, tc, cam, ctab, stab, near,
                prefix, sil, edges, edge_mask, top_cone, spacing, region_spacing,
-               do_sil, do_edge, do_region, counts, sums)
+               do_sil, do_edge, do_region, j15, joints, counts, sums)
 
 
 @nb.njit(cache=True, parallel=True, nogil=True)
 def eval_kernel(poses, parents, offsets, rot_axis, rot_sign, rot_param, trans_param,
                 joint, start, end, semi_a, semi_b, scale, Rc, tc, cam, ctab, stab, near,
                 prefix, sil, edges, edge_mask, top_cone, spacing, region_spacing,
-                do_sil, do_edge, do_region, n_threads, counts, sums):
+                do_sil, do_edge, do_region, n_threads, j15, joints, counts, sums):
     """Per (pose, view) silhouette counts and edge/region sums, kinematics included.
 
     Parameters
@@ -401,12 +415,15 @@ def eval_kernel(poses, parents, offsets, rot_axis, rot_sign, rot_param, trans_pa
     edge_mask : (K,) bool cones edge-sampled; top_cone : int (-1: none); spacing, region_spacing : px.
     do_sil, do_edge, do_region : bool, which parts to compute.
     n_threads : int, ``numba.get_num_threads()`` (passed in: calling it here would defeat caching).
+    j15 : (M,) int64 joint frames whose origins are written to ``joints`` (``M = 0``: none).
 
     Outputs
     -------
     counts : (N, C, 2) int64 -- ``Y``, ``P``.
     sums : (N, C, 5) float64 -- edge ``sum p``, ``sum (1 - p)^2``, visible sample count, region
         ``sum (1 - O)^2``, region point count.
+    joints : (N, M, 3) float64 -- the origins of the joint frames ``j15`` (from the kinematics the kernel runs
+        anyway: the keypoint term's joints without a second pass).
 
     Notes
     -----
@@ -419,4 +436,4 @@ def eval_kernel(poses, parents, offsets, rot_axis, rot_sign, rot_param, trans_pa
         eval_share(np.arange(th, poses.shape[0], nth), poses, parents, offsets, rot_axis, rot_sign, rot_param, trans_param,
                    joint, start, end, semi_a, semi_b, scale, Rc, tc, cam, ctab, stab, near,
                    prefix, sil, edges, edge_mask, top_cone, spacing, region_spacing,
-                   do_sil, do_edge, do_region, counts, sums)
+                   do_sil, do_edge, do_region, j15, joints, counts, sums)

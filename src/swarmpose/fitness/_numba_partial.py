@@ -37,6 +37,7 @@ from swarmpose.fitness._numba import (
     arc_length,
     arc_point,
     cone_reach,
+    copy_joints,
     line_occluders,
     line_sample,
 )
@@ -44,7 +45,7 @@ from swarmpose.fitness.threads import fetch_add, store_release
 from swarmpose.render._kernels import bucket_outlines, cone_outline, hidden, n_samples, pixel_value
 
 #: Hash of the kernel sources this module's cached kernels inline (see :mod:`swarmpose.fitness._numba`).
-INLINED_SOURCES_SHA1 = "7c6f054b287f3bd5"
+INLINED_SOURCES_SHA1 = "9963a42c9ea3d75c"
 
 __all__ = ["stay_base", "eval_claim_moving", "eval_claim_moving_go"]
 
@@ -292,7 +293,8 @@ def eval_claim_moving(claim, done, full, poses, moving, parents, offsets, rot_ax
                       joint, start, end, semi_a, semi_b, scale, Rc, tc, cam, ctab, stab, near,
                       prefix, sil, edges, edge_mask, top_cone, spacing, region_spacing, do_sil, do_edge,
                       T0, b_poly, b_sides, b_axis, b_info, b_bbox, b_orient, b_reach, b_nvs, b_valid, s_cnt, s_l, s_r,
-                      s_rows, s_tot, l_n, l_off, l_sum, smp_p, smp_hid, a_n, a_off, arc_xyz, arc_p, arc_hid, counts, sums):
+                      s_rows, s_tot, l_n, l_off, l_sum, smp_p, smp_hid, a_n, a_off, arc_xyz, arc_p, arc_hid, j15, joints, counts,
+                      sums):
     """:func:`swarmpose.fitness._numba.eval_claim` for a batch whose poses move only the cones ``moving (K,)``
     against the first pose (its transforms ``T0``; the base ``b_poly`` ... ``smp_hid`` from :func:`stay_base`):
     the (view, pose) items claimed one at a time; an item copies the view's staying outlines from the base
@@ -329,6 +331,8 @@ def eval_claim_moving(claim, done, full, poses, moving, parents, offsets, rot_ax
                         for b in range(4):
                             if Ts[n, j, a, b] != T0[j, a, b]:
                                 stays[n] = False
+        if c == 0:  # each pose's first item: written once, by one thread
+            copy_joints(Ts[n], j15, joints[n])
         if not stays[n]:
             _measure_view(n, c, Ts[n], joint, start, end, semi_a, semi_b, scale, Rc, tc, cam, ctab, stab, near,
                           prefix, sil, edges, edge_mask, top_cone, spacing, region_spacing, do_sil, do_edge, False,
@@ -402,11 +406,13 @@ def eval_claim_moving_go(go, seq, claim, done, full, poses, moving, parents, off
                          trans_param, joint, start, end, semi_a, semi_b, scale, Rc, tc, cam, ctab, stab, near,
                          prefix, sil, edges, edge_mask, top_cone, spacing, region_spacing, do_sil, do_edge,
                          T0, b_poly, b_sides, b_axis, b_info, b_bbox, b_orient, b_reach, b_nvs, b_valid, s_cnt, s_l, s_r,
-                         s_rows, s_tot, l_n, l_off, l_sum, smp_p, smp_hid, a_n, a_off, arc_xyz, arc_p, arc_hid, counts, sums):
+                         s_rows, s_tot, l_n, l_off, l_sum, smp_p, smp_hid, a_n, a_off, arc_xyz, arc_p, arc_hid, j15, joints,
+                         counts, sums):
     """:func:`eval_claim_moving` after ``go[0] = seq`` (see :func:`swarmpose.fitness._numba.eval_claim_go`)."""
     store_release(go, 0, seq)
     eval_claim_moving(claim, done, full, poses, moving, parents, offsets, rot_axis, rot_sign, rot_param, trans_param,
                       joint, start, end, semi_a, semi_b, scale, Rc, tc, cam, ctab, stab, near,
                       prefix, sil, edges, edge_mask, top_cone, spacing, region_spacing, do_sil, do_edge,
                       T0, b_poly, b_sides, b_axis, b_info, b_bbox, b_orient, b_reach, b_nvs, b_valid, s_cnt, s_l, s_r,
-                      s_rows, s_tot, l_n, l_off, l_sum, smp_p, smp_hid, a_n, a_off, arc_xyz, arc_p, arc_hid, counts, sums)
+                      s_rows, s_tot, l_n, l_off, l_sum, smp_p, smp_hid, a_n, a_off, arc_xyz, arc_p, arc_hid, j15, joints,
+                      counts, sums)

@@ -137,6 +137,9 @@ class Request:
         Compute the silhouette counts / the edge sums / the Deutscher-Reid interior sums.
     edge_spacing, region_spacing : float
         Sample spacing in pixels.
+    joints : bool
+        Also return the poses' 15 joints (:attr:`Measurements.joints`; the keypoint term's), where the backend has
+        them from its own kinematics (the numba backend); else :attr:`Measurements.joints` is None.
     """
 
     edge_mask: np.ndarray
@@ -146,6 +149,7 @@ class Request:
     region: bool = False
     edge_spacing: float = 5.0
     region_spacing: float = 8.0
+    joints: bool = False
 
 
 @dataclass
@@ -161,6 +165,8 @@ class Measurements:
     edge_count : float64 -- number of visible edge samples.
     region_sq : float64 -- sum of ``(1 - O)^2`` over the interior points (Deutscher & Reid eq. 15).
     region_count : float64 -- number of interior points.
+    joints : (N, 15, 3) float64 or None -- the poses' 15 joints (:meth:`~swarmpose.body.model.BodyModel.joints15`,
+        to the last bit) when the request asked for them and the backend computes them.
     """
 
     overlap: np.ndarray
@@ -170,13 +176,14 @@ class Measurements:
     edge_count: np.ndarray
     region_sq: np.ndarray
     region_count: np.ndarray
+    joints: np.ndarray | None = None
 
     @classmethod
-    def from_arrays(cls, counts: np.ndarray, sums: np.ndarray) -> Measurements:
+    def from_arrays(cls, counts: np.ndarray, sums: np.ndarray, joints: np.ndarray | None = None) -> Measurements:
         """From a kernel's ``counts (N, C, 2)`` (``Y``, ``P``) and ``sums (N, C, 5)`` (edge sum, edge
         SSD, edge count, region SSD, region count)."""
         return cls(overlap=counts[..., 0], projected=counts[..., 1], edge_sum=sums[..., 0], edge_sq=sums[..., 1],
-                   edge_count=sums[..., 2], region_sq=sums[..., 3], region_count=sums[..., 4])
+                   edge_count=sums[..., 2], region_sq=sums[..., 3], region_count=sums[..., 4], joints=joints)
 
 
 class ImageBackend(Protocol):
@@ -285,6 +292,7 @@ class NumbaBackend(_BackendBase):
         self.moving = bool(moving)
         self._ctab, self._stab = rim_tables(self.n_rim)
         self._moves = parameter_cones(model.kin, self.cones.joint, len(model.lower))
+        self._j15 = np.ascontiguousarray(model.joints15_index, dtype=np.int64)
         self._base: tuple | None = None  # (prepared frame, request key, T0, stay_base's arrays) of the last batch
         #: Items of the last batch measured in full although it took the moving-cones path (their staying
         #: cones' transforms differed after all); ``-1``: the last batch was measured in full.
@@ -308,6 +316,8 @@ class NumbaBackend(_BackendBase):
         N, C = p.shape[0], prepared.n_views
         counts = np.empty((N, C, 2), np.int64)
         sums = np.empty((N, C, 5))
+        j15 = self._j15 if request.joints else self._j15[:0]
+        joints = np.empty((N, j15.shape[0], 3))
         args = (p, *self.model.kin.as_tuple(), *self.cones.as_tuple(), prepared.R, prepared.t, prepared.cam,
                 self._ctab, self._stab, self.near, prepared.prefix, prepared.silhouettes, prepared.edges,
                 request.edge_mask, int(request.top_cone), float(request.edge_spacing),
@@ -316,20 +326,20 @@ class NumbaBackend(_BackendBase):
         moving = self._moving_cones(p, request)
         self.last_full_items = -1
         if moving is not None and not (self.threads == "prange" and nth > 1):
-            self._measure_moving(prepared, p, request, moving, args, nth, counts, sums)
+            self._measure_moving(prepared, p, request, moving, args, nth, j15, joints, counts, sums)
         elif self.threads == "prange" and nth > 1:
-            eval_kernel(*args, nth, counts, sums)
+            eval_kernel(*args, nth, j15, joints, counts, sums)
         elif nth == 1:
-            eval_share(np.arange(N), *args, counts, sums)
+            eval_share(np.arange(N), *args, j15, joints, counts, sums)
         else:
             # every thread claims (view, pose) items one at a time inside the kernel, so that a worker that
             # starts late still takes its part; the workers wait spinning between batches, so that a batch of
             # 20 poses does not pay two thread wake-ups
             claim, done = np.zeros(1, np.int64), np.zeros(1, np.int64)
             self._batch_threads(numba.get_num_threads()).share(
-                lambda: eval_claim(claim, done, *args, counts, sums),
-                lambda go, seq: eval_claim_go(go, seq, claim, done, *args, counts, sums), done, N * C)
-        return Measurements.from_arrays(counts, sums)
+                lambda: eval_claim(claim, done, *args, j15, joints, counts, sums),
+                lambda go, seq: eval_claim_go(go, seq, claim, done, *args, j15, joints, counts, sums), done, N * C)
+        return Measurements.from_arrays(counts, sums, joints if request.joints else None)
 
     def _moving_cones(self, poses: np.ndarray, request: Request) -> np.ndarray | None:
         """The cones the batch moves against its first pose, when that is at most half of them and the request
@@ -340,7 +350,8 @@ class NumbaBackend(_BackendBase):
         return moving if 2 * int(moving.sum()) <= moving.size else None
 
     def _measure_moving(self, prepared: PreparedFrame, p: np.ndarray, request: Request, moving: np.ndarray,
-                        args: tuple, nth: int, counts: np.ndarray, sums: np.ndarray) -> None:
+                        args: tuple, nth: int, j15: np.ndarray, joints: np.ndarray, counts: np.ndarray,
+                        sums: np.ndarray) -> None:
         """The batch ``p`` through :func:`~swarmpose.fitness._numba_partial.eval_claim_moving` (``args``: the full
         kernel's arguments), the staying cones' base measured by
         :func:`~swarmpose.fitness._numba_partial.stay_base` or kept from the last batch when it had the same frame,
@@ -368,12 +379,12 @@ class NumbaBackend(_BackendBase):
         claim, done, full = np.zeros(1, np.int64), np.zeros(1, np.int64), np.zeros(1, np.int64)
         N, C = p.shape[0], prepared.n_views
         if nth == 1:
-            eval_claim_moving(claim, done, full, *margs, counts, sums)
+            eval_claim_moving(claim, done, full, *margs, j15, joints, counts, sums)
         else:
             self._batch_threads(numba.get_num_threads()).share(
-                lambda: eval_claim_moving(claim, done, full, *margs, counts, sums),
-                lambda go, seq: eval_claim_moving_go(go, seq, claim, done, full, *margs, counts, sums), done,
-                N * C)
+                lambda: eval_claim_moving(claim, done, full, *margs, j15, joints, counts, sums),
+                lambda go, seq: eval_claim_moving_go(go, seq, claim, done, full, *margs, j15, joints, counts, sums),
+                done, N * C)
         self.last_full_items = int(full[0])
 
 

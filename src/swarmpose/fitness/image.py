@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -141,6 +142,8 @@ class ImageFitness:
             if opts.edge_top and TOP_EDGE_CONE in self._names and mask[self._names.index(TOP_EDGE_CONE)]:
                 top = self._names.index(TOP_EDGE_CONE)
             req = self._make_request(opts, mask, top)
+            if opts.keypoints > 0:  # the keypoint term's joints from the backend's own kinematics, where it has them
+                req = replace(req, joints=True)
             self._requests[opts] = req
         return req
 
@@ -179,6 +182,7 @@ class ImageFitness:
         if p.shape[0] == 0:
             return np.zeros(0)
         p, bad = _finite_rows(p, self.model)
+        m = None
         if opts.terms == "distance":
             scores = self.distance_score(p)
         else:
@@ -192,7 +196,8 @@ class ImageFitness:
             threshold = opts.keypoint_threshold
             if isinstance(threshold, str):  # per joint
                 threshold = joint_thresholds(threshold)
-            scores -= opts.keypoints * keypoint_cost(self.model.joints15(p), prepared.cameras, f.keypoints,
+            joints = m.joints if m is not None and m.joints is not None else self.model.joints15(p)
+            scores -= opts.keypoints * keypoint_cost(joints, prepared.cameras, f.keypoints,
                                                      f.keypoint_confidence, weights=a, elbow=opts.keypoint_elbow,
                                                      swaps=opts.keypoint_swaps, scale=opts.keypoint_scale,
                                                      threshold=threshold, power=opts.keypoint_power,
