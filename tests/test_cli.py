@@ -592,6 +592,21 @@ def test_bench_track_reports_every_part(short_sequence_cli: Path):
     assert data["rss_growth_kb_per_frame"] is None  # too few samples for a slope
 
 
+def test_bench_track_takes_the_tracked_views(short_sequence_cli: Path):
+    """``--views`` as ``track`` takes it: a held-out camera stays out; a camera the sequence lacks is named."""
+    from swarmpose.io.sequence import open_sequence
+
+    names = open_sequence(short_sequence_cli).view_names
+    three = ",".join(names[:3])
+    res = CliRunner().invoke(app, ["bench", "track", str(short_sequence_cli), "--algo", "sppso", "--max-frames", "1",
+                                   "--views", three, "--json"])
+    assert res.exit_code == 0, res.output
+    assert json.loads(res.stdout)["views"] == three
+    bad = CliRunner().invoke(app, ["bench", "track", str(short_sequence_cli), "--max-frames", "1", "--views",
+                                   "nocam", "--json"])
+    assert bad.exit_code != 0 and "nocam" in bad.output
+
+
 def test_memory_growth_fits_the_run_after_its_first_quarter():
     from swarmpose.track.bench import memory_growth
 

@@ -125,6 +125,8 @@ def track(
     fps: float = typer.Option(20.0, help="Tracking rate, frames/s."),
     max_frames: int = typer.Option(None, "--max-frames", min=1, help="Only the first N frames."),
     seed: int = typer.Option(0, min=0, help="Seed of the run."),
+    views: str = typer.Option("", help="Track with these cameras only, e.g. cam01,cam02,cam03 (as `track --views`: "
+                                       "a recording's held-out camera stays out)."),
     repeat: int = typer.Option(1, min=1, help="Play the tracked frames this many times, every other pass "
                                               "backwards: a long recording, to see whether the cost per frame "
                                               "grows with it."),
@@ -140,7 +142,8 @@ def track(
     from swarmpose.track.runner import resolve_sequence
     from swarmpose.track.tracker import TrackConfig
 
-    cfg = TrackConfig(algo=algo or DEFAULT_ALGO, fps=fps, seed=seed, max_frames=max_frames, optim_variant=variant)
+    cfg = TrackConfig(algo=algo or DEFAULT_ALGO, fps=fps, seed=seed, max_frames=max_frames, optim_variant=variant,
+                      views=views)
     seq = resolve_sequence(source or str(DEFAULT_CLIP), progress=not json_out)
     res = bench_track(seq, cfg, repeat=repeat, feature_cache=feature_cache(feature_cache_dir))
     if json_out:

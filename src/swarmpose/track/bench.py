@@ -132,6 +132,7 @@ def bench_track(sequence: str | Path, config: TrackConfig, *, run: int = 0, repe
         "algo": config.algo,
         "variant": config.optim_variant,
         "fps": config.fps,
+        "views": config.views or "all",
         "frames": frames,
         "repeat": int(repeat),
         "ms_per_frame_first_quarter": 1e3 * first_q,
