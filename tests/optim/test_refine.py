@@ -115,3 +115,33 @@ def test_chain_runs_members_in_turn_and_carries_the_first_ones_state():
     assert np.abs(res.x - [0.5, -0.5, 0.2]).max() < 0.01
     assert chain.carry() is not None
     assert isinstance(chain.members[1], PatternSearch)
+
+
+def test_line_moves_equal_the_plain_version_to_the_last_bit():
+    """The compiled Newton and gradient moves equal :func:`line_moves_reference`, bit for bit: polls with both
+    sides, one side (the other invalid or clipped away at a bound), none, steps of 0, ties and scores that are all
+    equal."""
+    from swarmpose.optim.refine import line_moves_reference
+
+    rng = np.random.default_rng(5)
+    for case in range(400):
+        d = int(rng.integers(1, 12))
+        x = rng.normal(0.0, 1.0, d)
+        h = np.abs(rng.normal(0.0, 0.3, d)) * (rng.random(d) > 0.2)  # some coordinates held
+        active = np.flatnonzero(h > 0)
+        eye = np.eye(d)[active] * h[active, None]
+        asked = np.concatenate([x + eye, x - eye])
+        keep = rng.random(len(asked)) > 0.25  # moves dropped (invalid, or equal to x after clipping)
+        asked = asked[keep]
+        scores = rng.normal(0.0, 1.0, len(asked))
+        if case % 5 == 0:
+            scores[rng.random(len(asked)) < 0.3] = rng.choice([np.nan, -np.inf])
+        if case % 7 == 0:
+            scores[:] = 0.5  # flat: no gradient, Newton steps of sign 0
+        fx = float(rng.normal())
+        opt = PatternSearch(x, np.where(h > 0, h, 0.0), 100, newton=(0.5, 1.0), gradient=(0.25, 1.0, 4.0))
+        opt.h = h.copy()
+        got = opt._line_moves(asked, scores, fx, x)
+        want = line_moves_reference(asked, scores, fx, x, h, opt.newton, opt.gradient)
+        assert got.shape == want.shape
+        assert np.array_equal(got, want), case

@@ -16,9 +16,11 @@ All see poses and scores only (:mod:`swarmpose.optim.base`).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
+import numba as nb
 import numpy as np
 
 from .base import (
@@ -34,7 +36,7 @@ from .base import (
     feasibility,
 )
 
-__all__ = ["PatternSearch", "BoxSearch", "Chain"]
+__all__ = ["PatternSearch", "BoxSearch", "Chain", "line_moves_reference"]
 
 
 class PatternSearch(Optimizer):
@@ -82,6 +84,8 @@ class PatternSearch(Optimizer):
         self.min_step = float(min_step)
         self.newton = tuple(float(c) for c in newton)
         self.gradient = tuple(float(c) for c in gradient)
+        self._newton_mult = np.array(self.newton, dtype=np.float64)
+        self._gradient_mult = np.array(self.gradient, dtype=np.float64)
         self._options = fitness_options
         self.h = self.step0.copy()
         self.x = np.clip(x, self.lower, self.upper)
@@ -146,33 +150,12 @@ class PatternSearch(Optimizer):
             self._stalled = True
 
     def _line_moves(self, asked: np.ndarray, scores: np.ndarray, fx: float, x: np.ndarray) -> np.ndarray:
-        """Newton and gradient moves from the poll's scores around ``x`` (rows: ``len(newton) + len(gradient)``)."""
-        d = x.size
-        fp = np.full(d, np.nan)
-        fm = np.full(d, np.nan)
-        delta = asked - x
-        coord = np.argmax(np.abs(delta), axis=1)
-        sign = np.sign(delta[np.arange(len(delta)), coord])
-        ok = np.isfinite(scores)
-        fp[coord[(sign > 0) & ok]] = scores[(sign > 0) & ok]
-        fm[coord[(sign < 0) & ok]] = scores[(sign < 0) & ok]
-        h = np.where(self.h > 0, self.h, 1.0)
-        both = np.isfinite(fp) & np.isfinite(fm)
-        g = np.zeros(d)
-        g[both] = (fp[both] - fm[both]) / (2 * h[both])
-        only_p = np.isfinite(fp) & ~both
-        only_m = np.isfinite(fm) & ~both
-        g[only_p] = (fp[only_p] - fx) / h[only_p]
-        g[only_m] = (fx - fm[only_m]) / h[only_m]
-        c = np.zeros(d)
-        c[both] = (fp[both] - 2 * fx + fm[both]) / h[both] ** 2
-        newton = np.where(c < 0, np.clip(-g / np.where(c < 0, c, -1.0), -2 * h, 2 * h), np.sign(g) * h)
-        newton[self.h == 0] = 0.0
-        gh = g * h
-        scale = np.abs(gh).max()
-        grad = np.zeros(d) if scale == 0 else h * gh / scale
-        grad[self.h == 0] = 0.0
-        return np.concatenate([np.multiply.outer(self.newton, newton), np.multiply.outer(self.gradient, grad)])
+        """Newton and gradient moves from the poll's scores around ``x`` (rows: ``len(newton) + len(gradient)``;
+        compiled, :func:`line_moves_reference` is the plain version it is tested against)."""
+        out = np.empty((len(self.newton) + len(self.gradient), x.size))
+        _line_moves_kernel(np.ascontiguousarray(asked, dtype=np.float64), np.ascontiguousarray(scores, dtype=np.float64),
+                           float(fx), x, self.h, self._newton_mult, self._gradient_mult, out)
+        return out
 
     def _tell(self, scores: np.ndarray) -> None:
         if self._phase == "start":
@@ -197,6 +180,100 @@ class PatternSearch(Optimizer):
         elif not self._poll_improved:
             self._shrink()
         self._phase = "poll"
+
+
+def line_moves_reference(asked: np.ndarray, scores: np.ndarray, fx: float, x: np.ndarray, step: np.ndarray,
+                         newton: Sequence[float], gradient: Sequence[float]) -> np.ndarray:
+    """:meth:`PatternSearch._line_moves` in numpy: from the poll ``asked`` (each row ``x +- h_d e_d``) and its
+    ``scores``, per coordinate the central difference ``g_d`` and curvature ``c_d`` (one-sided where one side is
+    missing), then the Newton rows (``-g_d / c_d`` where ``c_d < 0``, clipped to ``2 h_d``, else ``sign(g_d) h_d``)
+    at the ``newton`` multiples and the gradient rows (largest component ``h_d``) at the ``gradient`` multiples;
+    coordinates with step 0 stay."""
+    d = x.size
+    fp = np.full(d, np.nan)
+    fm = np.full(d, np.nan)
+    delta = asked - x
+    coord = np.argmax(np.abs(delta), axis=1)
+    sign = np.sign(delta[np.arange(len(delta)), coord])
+    ok = np.isfinite(scores)
+    fp[coord[(sign > 0) & ok]] = scores[(sign > 0) & ok]
+    fm[coord[(sign < 0) & ok]] = scores[(sign < 0) & ok]
+    h = np.where(step > 0, step, 1.0)
+    both = np.isfinite(fp) & np.isfinite(fm)
+    g = np.zeros(d)
+    g[both] = (fp[both] - fm[both]) / (2 * h[both])
+    only_p = np.isfinite(fp) & ~both
+    only_m = np.isfinite(fm) & ~both
+    g[only_p] = (fp[only_p] - fx) / h[only_p]
+    g[only_m] = (fx - fm[only_m]) / h[only_m]
+    c = np.zeros(d)
+    c[both] = (fp[both] - 2 * fx + fm[both]) / h[both] ** 2
+    newton_move = np.where(c < 0, np.clip(-g / np.where(c < 0, c, -1.0), -2 * h, 2 * h), np.sign(g) * h)
+    newton_move[step == 0] = 0.0
+    gh = g * h
+    scale = np.abs(gh).max()
+    grad = np.zeros(d) if scale == 0 else h * gh / scale
+    grad[step == 0] = 0.0
+    return np.concatenate([np.multiply.outer(newton, newton_move), np.multiply.outer(gradient, grad)])
+
+
+@nb.njit(cache=True, nogil=True)
+def _line_moves_kernel(asked, scores, fx, x, step, newton, gradient, out):
+    """:func:`line_moves_reference` into ``out``, the same operations in the same order per coordinate."""
+    d = x.shape[0]
+    fp = np.full(d, np.nan)
+    fm = np.full(d, np.nan)
+    for i in range(asked.shape[0]):
+        coord = 0
+        big = -1.0
+        for j in range(d):
+            a = abs(asked[i, j] - x[j])
+            if a > big:  # the first largest, as argmax
+                big = a
+                coord = j
+        dl = asked[i, coord] - x[coord]
+        if not math.isfinite(scores[i]):
+            continue
+        if dl > 0.0:
+            fp[coord] = scores[i]
+        elif dl < 0.0:
+            fm[coord] = scores[i]
+    g = np.zeros(d)
+    newton_move = np.zeros(d)
+    grad = np.zeros(d)
+    scale = 0.0
+    for j in range(d):
+        h = step[j] if step[j] > 0 else 1.0
+        has_p = math.isfinite(fp[j])
+        has_m = math.isfinite(fm[j])
+        c = 0.0
+        if has_p and has_m:
+            g[j] = (fp[j] - fm[j]) / (2 * h)
+            c = (fp[j] - 2 * fx + fm[j]) / (h * h)
+        elif has_p:
+            g[j] = (fp[j] - fx) / h
+        elif has_m:
+            g[j] = (fx - fm[j]) / h
+        if c < 0:
+            newton_move[j] = min(max(-g[j] / c, -2 * h), 2 * h)
+        else:
+            sg = 1.0 if g[j] > 0 else (-1.0 if g[j] < 0 else g[j])
+            newton_move[j] = sg * h
+        if step[j] == 0:
+            newton_move[j] = 0.0
+        scale = max(scale, abs(g[j] * h))
+    for j in range(d):
+        h = step[j] if step[j] > 0 else 1.0
+        if scale != 0:
+            grad[j] = h * (g[j] * h) / scale
+        if step[j] == 0:
+            grad[j] = 0.0
+    for q in range(newton.shape[0]):
+        for j in range(d):
+            out[q, j] = newton[q] * newton_move[j]
+    for q in range(gradient.shape[0]):
+        for j in range(d):
+            out[newton.shape[0] + q, j] = gradient[q] * grad[j]
 
 
 class BoxSearch(Optimizer):
