@@ -31,7 +31,8 @@ PAPER_BUDGETS = {
 #: Configurations beyond the papers and their budgets (base search + refinement; a lost limb's search not counted).
 OWN_BUDGETS = {"refined": 200 * 6 + 200, "refined-keypoints": 200 * 6 + 200,
                "refined-limbs": 200 * 6 + 200 + 4 * (1 + 100 * 5 + 100 + 2),  # + every limb searched, guarded
-               "refined-heading": 200 * 6 + 200 + 4 * (1 + 100 * 5 + 100 + 2) + (1 + 15 + 2 * 150 + 2)}  # + 15 turns
+               "refined-heading": 200 * 6 + 200 + 4 * (1 + 100 * 5 + 100 + 2) + (1 + 15 + 2 * 150 + 2),  # + 15 turns
+               "aapso-refined": 5 * 80 * 10 + 30 * 10 + 200}  # AAPSO, then the pattern search
 BUDGETS = {**PAPER_BUDGETS, **OWN_BUDGETS}
 
 
@@ -239,6 +240,23 @@ def test_hpso12_twelve_hard_partitions(balan31):
     assert sum(len(p) for p in parts) == 30 and set().union(*parts) == set(range(30))
     assert all(np.allclose(s.sigma_scale[s.active], 1.0) for s in stages)
     assert parts[0] == {3, 4, 5} and parts[1] == {0, 1, 2} and parts[-1] == {28, 29}
+
+
+def test_aapso_refined_is_aapso_then_a_pattern_search(balan31):
+    """The same AAPSO (its stages, spread and random draws), then 200 pattern-search evaluations from its estimate
+    with a first step of half its spread."""
+    from swarmpose.optim.refine import Chain, PatternSearch
+
+    plain, refined = get("aapso", model=balan31, fps=25), get("aapso-refined", model=balan31, fps=25)
+    assert refined.base.name == "aapso" and np.array_equal(refined.sigma, plain.sigma)
+    f = _fitness(balan31)
+    a = optimize(plain.start(np.zeros(31), np.random.default_rng(3)), f)
+    chain = refined.start(np.zeros(31), np.random.default_rng(3))
+    b = optimize(chain, f)
+    assert isinstance(chain, Chain) and isinstance(chain.members[1], PatternSearch)
+    assert np.array_equal(chain.members[0].best.x, a.x)  # AAPSO's part is AAPSO's, draw for draw
+    assert np.array_equal(chain.members[1].step0, 0.5 * plain.sigma)
+    assert b.score >= a.score and b.evaluations <= a.evaluations + 200
 
 
 def test_aapso_six_soft_stages(balan31):

@@ -665,6 +665,24 @@ def _aapso(name: str, reference: str, adaptive: bool) -> Callable[..., AAPSOConf
     return factory
 
 
+#: Pattern-search evaluations of ``aapso-refined`` after AAPSO's 4300.
+AAPSO_REFINE_BUDGET = 200
+
+REF_AAPSO_REFINED = ("beyond the papers: Sharifi et al.'s AAPSO with a coordinate pattern search (Kolda, Lewis & "
+                     "Torczon 2003) on the same marker fitness")
+
+
+def _aapso_refined(model: Any, fps: float, fps_scaling: str = "variance") -> RefinedConfig:
+    """``aapso`` followed by a :data:`AAPSO_REFINE_BUDGET`-evaluation pattern search on the same fitness, its first
+    step half AAPSO's spread (the local step of ``refined``, on markers)."""
+    base = _aapso("aapso", REF_AAPSO, True)(model, fps, fps_scaling)
+    a = _model_arrays(model)
+    a["sigma"] = base.sigma
+    a["fps"] = fps
+    return RefinedConfig(name="aapso-refined", reference=REF_AAPSO_REFINED, base=base,
+                         refine_budget=AAPSO_REFINE_BUDGET, refine_step=0.5, **a)
+
+
 @dataclass(frozen=True)
 class _Entry:
     factory: Callable[..., OptimizerConfig]
@@ -758,6 +776,14 @@ register(
     evals_per_frame=4300,
     factory_options=("fps_scaling",),
     summary="adaptive annealed PSO on 2D marker detections: torso, 4 limbs, head in 6 soft stages",
+)
+register(
+    "aapso-refined",
+    _aapso_refined,
+    reference=REF_AAPSO_REFINED,
+    evals_per_frame=4300 + AAPSO_REFINE_BUDGET,
+    factory_options=("fps_scaling",),
+    summary="AAPSO on 2D marker detections, then a pattern search on the same fitness (the local step of refined)",
 )
 register(
     "aapso-fixed",
