@@ -42,8 +42,10 @@ MEASURED: dict[str, Measured] = {
     "apf-adaptive": Measured(50.0, 20.0, 9.9, 5, _track("apf-adaptive", 20)),
     "apf-dr05": Measured(30.6, 20.0, 5.6, 5, _track("apf-dr05", 20)),
     # on the synthetic 2D marker detections, with the default (symmetric reprojection) fitness
-    "aapso": Measured(14.8, 25.0, None, 5, _track("aapso", 25)),
+    "aapso": Measured(14.8, 25.0, 5.7, 5, _track("aapso", 25)),
     "aapso-fixed": Measured(15.2, 25.0, None, 5, "swarmpose compare markers-reprojection"),
+    # aapso's frames/s and both rows at git 7b0355c, in one session
+    "aapso-refined": Measured(12.1, 25.0, 6.1, 5, _track("aapso-refined", 25)),
     # 2 runs (git d556adc); `swarmpose compare ablation --runs 5` gives it 25.7 (23.8-28.9) on the walk; the frames/s
     # of these rows and of sppso, apf-adaptive and apf-dr05 measured again at git 4cbe663, in one session
     "refined": Measured(24.8, 20.0, 6.9, 2, _track("refined", 20, runs=2)),
