@@ -19,6 +19,8 @@ apf-adaptive   1000   the apf set-up (200 x 5, Sigma as SPPSO, x31 fixed) with [
 apf-dr05       2000   [DR05] sec. 3.1, Fig. 9-10: 200 particles x 10 layers, adaptive (6.1), crossover
 aapso          4300   [SH17] sec. 4.2: 5 stages x 80 x 10 + 30 x 10; eq. 18
 aapso-fixed    4300   [SH17] as aapso with eq. 16 (the authors' earlier version, sec. 4.9)
+aapso-         4500   beyond the papers: aapso, then a 200-evaluation pattern search on the same marker
+refined               fitness
 refined        1400   beyond the papers: apf-dr05 at 200 x 6, then a 200-evaluation pattern search
                       (:mod:`swarmpose.optim.refine`); the tracker adds root velocity and limb recovery
 refined-       1400   refined with the keypoint term (``keypoints=2``) in its searches: sequences that carry
