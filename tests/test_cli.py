@@ -607,6 +607,23 @@ def test_bench_track_takes_the_tracked_views(short_sequence_cli: Path):
     assert bad.exit_code != 0 and "nocam" in bad.output
 
 
+def test_bench_track_takes_the_downsampling(short_sequence_cli: Path):
+    """``--downsample`` as ``track`` takes it: the run tracks the coarser images (another track than at full
+    resolution, the factor in the JSON); a factor ``track`` refuses is refused here too, by name."""
+    def bench(*extra: str) -> dict:
+        res = CliRunner().invoke(app, ["bench", "track", str(short_sequence_cli), "--algo", "sppso", "--max-frames",
+                                       "2", "--json", *extra])
+        assert res.exit_code == 0, res.output
+        return json.loads(res.stdout)
+
+    full, half = bench(), bench("--downsample", "2")
+    assert (full["downsample"], half["downsample"]) == (1, 2)
+    assert half["d_mean_mm"] != full["d_mean_mm"]
+    bad = CliRunner().invoke(app, ["bench", "track", str(short_sequence_cli), "--max-frames", "1", "--downsample",
+                                   "3", "--json"])
+    assert bad.exit_code != 0 and "downsample" in bad.output
+
+
 def test_memory_growth_fits_the_run_after_its_first_quarter():
     from swarmpose.track.bench import memory_growth
 

@@ -127,6 +127,8 @@ def track(
     seed: int = typer.Option(0, min=0, help="Seed of the run."),
     views: str = typer.Option("", help="Track with these cameras only, e.g. cam01,cam02,cam03 (as `track --views`: "
                                        "a recording's held-out camera stays out)."),
+    downsample: int = typer.Option(1, help="Image downsampling, as `track --downsample` takes it: 1 (full "
+                                           "resolution), 2, 4 or 8 (faster, coarser)."),
     repeat: int = typer.Option(1, min=1, help="Play the tracked frames this many times, every other pass "
                                               "backwards: a long recording, to see whether the cost per frame "
                                               "grows with it."),
@@ -143,7 +145,7 @@ def track(
     from swarmpose.track.tracker import TrackConfig
 
     cfg = TrackConfig(algo=algo or DEFAULT_ALGO, fps=fps, seed=seed, max_frames=max_frames, optim_variant=variant,
-                      views=views)
+                      views=views, downsample=downsample)
     seq = resolve_sequence(source or str(DEFAULT_CLIP), progress=not json_out)
     res = bench_track(seq, cfg, repeat=repeat, feature_cache=feature_cache(feature_cache_dir))
     if json_out:
@@ -152,7 +154,9 @@ def track(
     from rich.table import Table
 
     table = Table(title=f"{res['algo']}{' --variant ' + res['variant'] if res['variant'] else ''} at "
-                        f"{res['fps']:g} fps: {res['frames']} frames, "
+                        f"{res['fps']:g} fps"
+                        f"{', downsampled ' + str(res['downsample']) + 'x' if res['downsample'] > 1 else ''}: "
+                        f"{res['frames']} frames, "
                         f"{res['frames_per_s']:.2f} frames/s ({res['ms_per_frame']:.1f} ms per frame), "
                         f"{res['evals_per_frame']} evaluations per frame")
     for col in ("part", "ms per frame", "share", "what"):

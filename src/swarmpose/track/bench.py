@@ -133,6 +133,7 @@ def bench_track(sequence: str | Path, config: TrackConfig, *, run: int = 0, repe
         "variant": config.optim_variant,
         "fps": config.fps,
         "views": config.views or "all",
+        "downsample": config.downsample,
         "frames": frames,
         "repeat": int(repeat),
         "ms_per_frame_first_quarter": 1e3 * first_q,
