@@ -193,6 +193,26 @@ def test_refined_recovery_of_every_limb_with_the_frames_fitness(model):
             apply_variant(cfg, bad)
 
 
+def test_the_limbs_search_size_variants(model):
+    """``recovery_search=SxR`` and ``recovery_refine=B`` size each searched limb's box search and its polish; the
+    evaluations per frame follow (4 limbs on every frame); a bad size or a configuration without recovery is
+    refused by name."""
+    from swarmpose.track.recovery import Recovery
+
+    base = optim.get("refined-heading", model=model, fps=20.0)
+    small = apply_variant(base, "recovery_search=50x3+recovery_refine=50")
+    r = Recovery.from_settings(small.recovery)
+    assert (r.n_samples, r.n_rounds, r.refine_budget) == (50, 3, 50)
+    assert (r.threshold, r.terms, r.guard) == (-1.0, "fitness", "silhouette")  # the rest of the default's recovery
+    assert base.evals_per_frame - small.evals_per_frame == 4 * ((100 * 5 + 100) - (50 * 3 + 50))
+    for bad in ("recovery_search=50", "recovery_search=0x3", "recovery_search=ax3", "recovery_refine=-1",
+                "recovery_refine=x"):
+        with pytest.raises(ConfigError, match=bad.partition("=")[0]):
+            apply_variant(base, bad)
+    with pytest.raises(ConfigError, match="recovery_search"):
+        apply_variant(apply_variant(base, "recovery=off"), "recovery_search=50x3")
+
+
 def test_the_keypoint_joints_option_is_read_and_a_bad_one_refused():
     from swarmpose.fitness.base import ImageOptions, parse_image_options
 

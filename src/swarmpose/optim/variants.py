@@ -30,7 +30,9 @@ def apply_variant(config: Any, variant: str) -> Any:
       the silhouette distance term, the default; ``silhouette``: the silhouette overlap term alone); ``recovery_margin=M``: a searched-again limb kept only when
       it scores more than M above the one it replaces; ``recovery_guard=silhouette``: a searched-again limb kept
       only when the silhouette overlap term does not fall either; ``recovery_in_turn=K``: only K limbs looked at per frame,
-      in turn (with ``recovery=all`` each limb is searched every 4/K frames); ``height=silhouettes``: the predicted root height moves by the rise of
+      in turn (with ``recovery=all`` each limb is searched every 4/K frames); ``recovery_search=SxR``: each searched limb's
+      box search asks S poses in each of R rounds (default 100 x 5), ``recovery_refine=B``: then B pattern-search
+      evaluations (default 100); ``height=silhouettes``: the predicted root height moves by the rise of
       the silhouettes' triangulated centre since the frame before (``height=off``: not); ``turn=on``: the body's
       heading searched again on every frame (the pose and its pelvis alone turned, the best polished:
       ``swarmpose.track.turn``, 318 evaluations); ``turn_margin=M``: a turned pose kept only when it scores
@@ -106,6 +108,21 @@ def apply_variant(config: Any, variant: str) -> Any:
             raise ConfigError(f"variant {variant!r}: expected recovery_in_turn=K, a whole number of limbs >= 1 per "
                               f"frame, on a configuration with limb recovery ({config.name!r})")
         return dataclasses.replace(config, recovery={**dict(config.recovery), "in_turn": int(value)})
+    if head == "recovery_search":
+        parts = variant.partition("=")[2].lower().split("x")
+        if (not getattr(config, "recovery", None) or len(parts) != 2
+                or not all(p.strip().isdigit() and int(p) >= 1 for p in parts)):
+            raise ConfigError(f"variant {variant!r}: expected recovery_search=SxR (S poses in each of R rounds of a "
+                              f"limb's box search, two whole numbers >= 1, e.g. recovery_search=50x3) on a "
+                              f"configuration with limb recovery ({config.name!r})")
+        return dataclasses.replace(config, recovery={**dict(config.recovery), "n_samples": int(parts[0]),
+                                                     "n_rounds": int(parts[1])})
+    if head == "recovery_refine":
+        value = variant.partition("=")[2].strip()
+        if not getattr(config, "recovery", None) or not value.isdigit():
+            raise ConfigError(f"variant {variant!r}: expected recovery_refine=B, a whole number of pattern-search "
+                              f"evaluations per searched limb, on a configuration with limb recovery ({config.name!r})")
+        return dataclasses.replace(config, recovery={**dict(config.recovery), "refine_budget": int(value)})
     if head == "recovery_terms":
         value = variant.partition("=")[2].strip()
         if not getattr(config, "recovery", None) or value not in ("distance", "fitness", "silhouette"):
