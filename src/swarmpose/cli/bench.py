@@ -128,7 +128,7 @@ def track(
     views: str = typer.Option("", help="Track with these cameras only, e.g. cam01,cam02,cam03 (as `track --views`: "
                                        "a recording's held-out camera stays out)."),
     downsample: int = typer.Option(1, help="Image downsampling, as `track --downsample` takes it: 1 (full "
-                                           "resolution), 2, 4 or 8 (faster, coarser)."),
+                                           "resolution), 2, 4 or 8 (coarser)."),
     repeat: int = typer.Option(1, min=1, help="Play the tracked frames this many times, every other pass "
                                               "backwards: a long recording, to see whether the cost per frame "
                                               "grows with it."),

@@ -137,7 +137,8 @@ def track(
                  "(apf, apf-adaptive, apf-dr05). For refined: refine=B, recovery=off or recovery=T (a limb is lost "
                  "above a silhouette disagreement of T, default 0.05), height=silhouettes (the predicted root height "
                  "follows the rise of the silhouettes' centre). Join several with +."),
-    downsample: int = typer.Option(1, help="Image downsampling: 1 (full resolution), 2, 4 or 8 (faster, coarser)."),
+    downsample: int = typer.Option(1, help="Image downsampling: 1 (full resolution), 2, 4 or 8: coarser images, "
+                                           "less accurate and only a little faster (docs/results.md, Coarser images)."),
     backend: str = typer.Option(
         "numba", help="Fitness backend: numba (default, all CPU cores), torch (PyTorch on the GPU when there is "
                       "one: numba's pixel and sample counts; pip install 'swarmpose\\[torch]') or reference "
