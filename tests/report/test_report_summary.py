@@ -225,12 +225,13 @@ def test_single_run_report(results_copy: Path):
 def test_reproduce_command_carries_every_non_default_setting(results_copy: Path):
     cfg = json.loads((results_copy / "config.json").read_text())
     cfg.update(optim_variant="stage2=40x20", fitness_options="terms=silhouette", feature_options="edge_threshold=8",
-               motion="constant-velocity@root_position")
+               motion="constant-velocity@root_position", views="BW1,BW2", backward=True, smooth=0.05)
     (results_copy / "config.json").write_text(json.dumps(cfg))
     md = write_summary(results_copy).read_text()
     cmd = md.split("Reproduce with:")[1].split("```")[1]
     for part in ("--variant stage2=40x20", "--fitness-options terms=silhouette", "--features edge_threshold=8",
-                 "--motion constant-velocity@root_position", "--seed 3"):
+                 "--motion constant-velocity@root_position", "--seed 3", "--views BW1,BW2", "--backward",
+                 "--smooth 0.05"):
         assert part in cmd
     assert "| optimiser variant | `stage2=40x20` |" in md and "| motion model | constant-velocity@root_position |" in md
 

@@ -176,6 +176,12 @@ def track(
                                  help="Offline: smooth the poses over time with a Gaussian of this standard "
                                       "deviation in seconds, e.g. 0.05 (0: off). Less jitter; track.npz keeps the "
                                       "raw poses as raw_params."),
+    consensus: int = typer.Option(0, "--consensus", min=0,
+                                  help="Offline: also fuse the runs K at a time into one track each, per frame the "
+                                       "model fitted to the median of their joints (with --backward both passes "
+                                       "count), written to OUT/consensus as a results folder of its own (report "
+                                       "and export read it). --runs must be a multiple of K; K times the time of "
+                                       "one run. 0: off."),
     feature_cache_dir: str = typer.Option(DEFAULT_FEATURE_CACHE, "--feature-cache", help=FEATURE_CACHE_HELP),
     workers: int = typer.Option(None, min=1, help="Parallel worker processes (default: one per core, at most --runs); "
                                                   "each uses cores / workers numba threads."),
@@ -228,7 +234,7 @@ def track(
                 name = seq.name
             out = Path("results") / default_results_name(name, cfg)
         summary = track_runs(seq, cfg, runs, out, resume=resume, workers=workers, scheduler=client,
-                             progress=progress, feature_cache=feature_cache(feature_cache_dir))
+                             progress=progress, feature_cache=feature_cache(feature_cache_dir), consensus=consensus)
     except KeyboardInterrupt:
         raise interrupted_tracking(out) from None
     if max_frames is not None and summary["frames"] < max_frames:
@@ -254,6 +260,10 @@ def track(
     if not summary.get("ground_truth", True):
         console.print(f"  no ground truth: no 3D error; {summary['frames_per_s']:.2f} frames/s"
                       + (f"; tracked with {summary['views']}" if summary.get("views") else ""), highlight=False)
+        if summary.get("consensus"):
+            c = summary["consensus"]
+            console.print(f"  consensus of {c['runs_per_track']} runs ({count(c['runs'], 'track')}) in "
+                          f"{c['out_dir']}/", markup=False, highlight=False)
         console.print(f"  results in {out}/  (the report scores held-out cameras: swarmpose report {out})",
                       markup=False, highlight=False)
         return
@@ -267,6 +277,11 @@ def track(
     if runs > 1:
         w = summary["worst"]
         console.print(f"  worst run {w['run']}: D_mean {w['d_mean_mm']:.1f} mm, D_max {w['d_max_mm']:.1f} mm")
+    if summary.get("consensus"):
+        c = summary["consensus"]
+        console.print(f"  consensus of {c['runs_per_track']} runs ({count(c['runs'], 'track')}): D_mean "
+                      f"{c['d_mean_mm']:.1f} mm, D_max {c['d_max_mm']:.1f} mm; MMTA {100 * c['mmta']:.1f} %; "
+                      f"in {c['out_dir']}/", markup=False, highlight=False)
     console.print(f"  results in {out}/  (make a report: swarmpose report {out})", markup=False, highlight=False)
 
 

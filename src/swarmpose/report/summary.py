@@ -84,7 +84,8 @@ def _table(header: Sequence[str], rows: Sequence[Sequence[str]], align: str | No
 _TRACK_OPTIONS = (("fps", "--fps"), ("runs", "--runs"), ("seed", "--seed"), ("model", "--model"),
                   ("fitness", "--fitness"), ("optim_variant", "--variant"), ("fitness_options", "--fitness-options"),
                   ("feature_options", "--features"), ("motion", "--motion"), ("downsample", "--downsample"),
-                  ("backend", "--backend"), ("max_frames", "--max-frames"))
+                  ("backend", "--backend"), ("max_frames", "--max-frames"), ("views", "--views"),
+                  ("smooth", "--smooth"))
 _ALWAYS = ("fps", "runs", "seed")
 
 
@@ -97,12 +98,20 @@ def _reproduce(cfg: dict[str, Any]) -> str | None:
     if not cfg.get("sequence") or not cfg.get("algo"):
         return None
     defaults = asdict(TrackConfig())
+    fused = cfg.get("consensus") or {}
+    per_track = int(fused.get("runs_per_track") or 0)
     parts = ["swarmpose track", shlex.quote(str(cfg["sequence"])), f"--algo {shlex.quote(str(cfg['algo']))}"]
     for key, opt in _TRACK_OPTIONS:
         v = cfg.get(key)
+        if key == "runs" and per_track and v is not None:  # a consensus folder: its tracks fuse K runs each
+            v = int(v) * per_track
         if v is None or (key not in _ALWAYS and v == defaults[key]):
             continue
         parts.append(f"{opt} {v:g}" if isinstance(v, float) else f"{opt} {shlex.quote(str(v))}")
+    if cfg.get("backward"):
+        parts.append("--backward")
+    if per_track:
+        parts.append(f"--consensus {per_track}")
     return " ".join(parts)
 
 

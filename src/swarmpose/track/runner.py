@@ -424,10 +424,16 @@ def _intervals(frame_times: np.ndarray) -> dict[str, float | None]:
 
 def track_runs(sequence: str | Path, config: TrackConfig, runs: int, out_dir: Path, *, resume: bool = False,
                workers: int | None = None, scheduler: Any = None, progress: bool = True,
-               feature_cache: str | Path | None = None) -> dict[str, Any]:
+               feature_cache: str | Path | None = None, consensus: int = 0) -> dict[str, Any]:
     """Track ``runs`` runs of one configuration and write ``out_dir`` (config, runs, summary); ``feature_cache``:
-    the feature stores' folder (:mod:`swarmpose.track.feature_store`), None for none."""
+    the feature stores' folder (:mod:`swarmpose.track.feature_store`), None for none. ``consensus=K``: then fuse
+    the runs K at a time into ``out_dir/consensus`` (:func:`swarmpose.track.consensus.write_consensus`; its
+    summary under ``"consensus"``)."""
+    from swarmpose.track.consensus import check_groups
+
     out_dir = Path(out_dir)
+    if consensus:
+        check_groups(runs, consensus)
     check_results_folder(out_dir, sequence, config, runs, resume)  # before anything is written
     fresh = not out_dir.exists()
     with folder_lock(out_dir):  # a second process on this folder (a --resume started twice) is refused
@@ -442,8 +448,16 @@ def track_runs(sequence: str | Path, config: TrackConfig, runs: int, out_dir: Pa
             if fresh:  # a source or setting that fails leaves no results folder behind
                 remove_unused_folder(out_dir)
             raise
-        return _track_jobs(sequence, config, runs, out_dir, setup, resume=resume, workers=workers,
-                           scheduler=scheduler, progress=progress, feature_cache=feature_cache)
+        summary = _track_jobs(sequence, config, runs, out_dir, setup, resume=resume, workers=workers,
+                              scheduler=scheduler, progress=progress, feature_cache=feature_cache)
+        if consensus:
+            from swarmpose.body.priors import HardPriors
+            from swarmpose.track.consensus import write_consensus
+
+            summary["consensus"] = write_consensus(out_dir, consensus, setup.model, HardPriors(setup.model).valid,
+                                                   setup.has_ground_truth)
+            (out_dir / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
+        return summary
 
 
 def sum_recoveries(per_run: Sequence[dict[str, Any]]) -> dict[str, int]:
