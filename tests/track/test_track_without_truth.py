@@ -248,6 +248,28 @@ def test_a_sequence_without_truth_is_tracked_from_its_keypoints(bare_sequence: P
     assert held["camera"] == "BW4" and held["model_px"]["median"] < 15 and held["iou"]["median"] > 0.5
 
 
+def test_a_recording_without_truth_gets_its_consensus_scored_in_the_held_out_camera(bare_sequence: Path,
+                                                                                      tmp_path: Path):
+    """``--consensus`` on a sequence without ground truth: no 3D error (null, never a number), the consensus folder
+    reported like any results folder, the held-out camera scoring its track."""
+    from typer.testing import CliRunner
+
+    from swarmpose.cli.app import app
+
+    out = tmp_path / "res"
+    res = CliRunner().invoke(app, ["track", str(bare_sequence), "--algo", "sppso", "--max-frames", "2", "--runs", "3",
+                                   "--consensus", "3", "--out", str(out), "--views", "BW1,BW2,BW3", "--json"])
+    assert res.exit_code == 0, res.output
+    c = json.loads(res.stdout)["consensus"]
+    assert c["ground_truth"] is False and c["d_mean_mm"] is None and c["mmta"] is None and c["runs"] == 1
+    with np.load(out / "consensus" / "run_000" / "track.npz") as z:
+        assert np.isnan(z["d_per_frame"]).all() and z["params"].shape[0] == 2
+    rep = CliRunner().invoke(app, ["report", str(out / "consensus"), "--frames", "1"])
+    assert rep.exit_code == 0, rep.output
+    held = json.loads((out / "consensus" / "report" / "heldout.json").read_text())[0]
+    assert held["camera"] == "BW4" and held["model_px"]["median"] < 15
+
+
 def test_without_truth_or_keypoints_the_error_says_what_to_do(short_sequence: Path, tmp_path: Path):
     from swarmpose.errors import DataError
     from swarmpose.track.tracker import TrackConfig, prepare_track
