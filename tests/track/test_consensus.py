@@ -11,8 +11,8 @@ from typer.testing import CliRunner
 
 from swarmpose.body.model import load_model
 from swarmpose.cli.app import app
-from swarmpose.errors import ConfigError
-from swarmpose.track.consensus import check_groups, consensus_params
+from swarmpose.errors import ConfigError, DataError
+from swarmpose.track.consensus import check_groups, consensus_params, write_consensus
 
 
 @pytest.fixture(scope="module")
@@ -107,3 +107,7 @@ def test_track_writes_the_consensus_as_a_results_folder(short_sequence: Path, tm
     bad = CliRunner().invoke(app, ["track", str(short_sequence), "--runs", "3", "--consensus", "2", "--out",
                                    str(tmp_path / "bad"), "--json"])
     assert bad.exit_code != 0 and "--consensus" in bad.output and not (tmp_path / "bad").exists()
+    (out / "run_003" / "track.npz").unlink()  # an unfinished run is named; the consensus written stays as it was
+    with pytest.raises(DataError, match="run_003 not finished"):
+        write_consensus(out, 2, fused.model)
+    assert load_results(out / "consensus").summary["d_mean_mm"] == pytest.approx(c["d_mean_mm"])

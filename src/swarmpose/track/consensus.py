@@ -102,15 +102,19 @@ def write_consensus(results: Path, per_track: int, model: Any, constraint: Any =
     and write them to ``results/consensus`` as a results folder of their own (``config.json`` with a ``consensus``
     record, the subject, ``run_XXX/{track.npz, joints.npz, summary.json}``, ``summary.json``); returns that summary.
 
-    Raises :class:`~swarmpose.errors.ConfigError` when the runs are not a multiple of ``per_track``,
-    :class:`~swarmpose.errors.DataError` when a run is unfinished (its frames differ from the others').
+    Raises :class:`~swarmpose.errors.ConfigError` when the runs (``config.json``'s) are not a multiple of
+    ``per_track``, :class:`~swarmpose.errors.DataError` when one of them is unfinished.
     """
     from swarmpose.metrics import aggregate_runs, joint_acceleration, track_errors
 
     results = Path(results)
-    runs = sorted(int(p.name[4:]) for p in results.glob("run_[0-9][0-9][0-9]") if (p / "track.npz").is_file())
-    groups = _groups(runs, per_track)
     config = read_json_object(results / "config.json")
+    runs = list(range(int(config.get("runs") or 0)))
+    groups = _groups(runs, per_track)
+    unfinished = [f"run_{r:03d}" for r in runs if not (results / f"run_{r:03d}" / "track.npz").is_file()]
+    if unfinished:
+        raise DataError(f"{results}: {', '.join(unfinished)} not finished (resume them first: swarmpose track ... "
+                        "--resume)")
     out = results / CONSENSUS_FOLDER
     tmp = results / f".{CONSENSUS_FOLDER}.partial"
     shutil.rmtree(tmp, ignore_errors=True)
