@@ -73,9 +73,9 @@ def consensus_params(model: Any, hypotheses: np.ndarray, constraint: Any = None)
     return Consensus(params=params, joints=model.joints15(params), nearest=nearest, fitted=fitted)
 
 
-def run_hypotheses(run_dir: Path) -> np.ndarray:
-    """A run's poses ``(H, T, D)``: its track, and its forward pass's where it was tracked with ``--backward``."""
-    track = load_npz(run_dir / "track.npz", ("params",))
+def run_hypotheses(track: dict[str, np.ndarray]) -> np.ndarray:
+    """A run's poses ``(H, T, D)`` from its ``track.npz`` arrays: its track, and its forward pass's where it was
+    tracked with ``--backward``."""
     out = [np.asarray(track["params"], dtype=np.float64)]
     if "forward_params" in track:
         out.append(np.asarray(track["forward_params"], dtype=np.float64))
@@ -105,7 +105,7 @@ def write_consensus(results: Path, per_track: int, model: Any, constraint: Any =
     Raises :class:`~swarmpose.errors.ConfigError` when the runs (``config.json``'s) are not a multiple of
     ``per_track``, :class:`~swarmpose.errors.DataError` when one of them is unfinished.
     """
-    from swarmpose.metrics import aggregate_runs, joint_acceleration, track_errors
+    from swarmpose.metrics import aggregate_runs
 
     results = Path(results)
     config = read_json_object(results / "config.json")
@@ -125,7 +125,6 @@ def write_consensus(results: Path, per_track: int, model: Any, constraint: Any =
                 shutil.copy2(results / name, tmp / name)
         ref = load_npz(results / f"run_{runs[0]:03d}" / "joints.npz", ("joints", "gt_joints"))
         gt = np.asarray(ref["gt_joints"], dtype=np.float64)
-        times = np.asarray(ref["frame_times"], dtype=np.float64) if "frame_times" in ref else None
         track0 = load_npz(results / f"run_{runs[0]:03d}" / "track.npz", ("params",))
         per_run, errors = [], []
         for k, group in enumerate(groups):
@@ -133,34 +132,22 @@ def write_consensus(results: Path, per_track: int, model: Any, constraint: Any =
             hyps, seconds = [], 0.0
             for r in group:
                 run_dir = results / f"run_{r:03d}"
-                h = run_hypotheses(run_dir)
+                track = load_npz(run_dir / "track.npz", ("params",))
+                h = run_hypotheses(track)
                 if h.shape[1] != gt.shape[0]:
                     raise DataError(f"{run_dir}: {h.shape[1]} frames tracked of {gt.shape[0]}: the run is unfinished "
                                     "(resume it first: swarmpose track ... --resume)")
                 hyps.append(h)
-                tr = load_npz(run_dir / "track.npz", ("params",))
-                seconds += float(np.sum(tr["seconds"])) if "seconds" in tr else 0.0
+                seconds += float(np.sum(track["seconds"])) if "seconds" in track else 0.0
             fused = consensus_params(model, np.concatenate(hyps), constraint)
             seconds += time.perf_counter() - t0
-            T = len(fused.params)
-            run_dir = tmp / f"run_{k:03d}"
-            run_dir.mkdir()
-            d = np.linalg.norm(fused.joints - gt, axis=-1).mean(axis=1) if has_ground_truth else np.full(T, np.nan)
-            save_npz(run_dir / "track.npz", params=fused.params, joints=fused.joints, d_per_frame=d,
-                     frame_indices=track0.get("frame_indices", np.arange(T)), fused_runs=np.array(group),
-                     nearest=fused.nearest, fitted=fused.fitted,
-                     param_names=np.array(model.param_names))
-            save_npz(run_dir / "joints.npz", joints=fused.joints, gt_joints=gt,
-                     **({} if times is None else {"frame_times": times}),
-                     **({"world_from_source": ref["world_from_source"]} if "world_from_source" in ref else {}))
             summary = {"run": k, "fused_runs": group, "hypotheses": int(sum(len(h) for h in hyps)),
-                       "frames_fitted": int(fused.fitted.sum()), "frames_per_s": T / seconds if seconds > 0 else None,
-                       "acceleration_mm_s2": None if times is None else joint_acceleration(fused.joints, times)}
-            if has_ground_truth:
-                e = track_errors(fused.joints, gt)
+                       "frames_fitted": int(fused.fitted.sum()),
+                       "frames_per_s": len(fused.params) / seconds if seconds > 0 else None}
+            e = _write_track(tmp / f"run_{k:03d}", fused, ref, track0.get("frame_indices"), group, model, summary,
+                             has_ground_truth)
+            if e is not None:
                 errors.append(e)
-                summary.update(e.summary())
-            (run_dir / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
             per_run.append(summary)
         record = {**config, "runs": len(groups),
                   "consensus": {"runs_per_track": per_track, "source": str(results.resolve()),
@@ -185,3 +172,28 @@ def write_consensus(results: Path, per_track: int, model: Any, constraint: Any =
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     return total
+
+
+def _write_track(run_dir: Path, fused: Consensus, ref: dict[str, np.ndarray], frame_indices: np.ndarray | None,
+                 group: list[int], model: Any, summary: dict[str, Any], has_ground_truth: bool) -> Any:
+    """Write one consensus track as a run folder (``track.npz``, ``joints.npz`` beside ``ref``'s truth, times and
+    world frame, ``summary.json``: ``summary`` with its errors); returns its :class:`~swarmpose.metrics.TrackErrors`
+    (None without ground truth)."""
+    from swarmpose.metrics import joint_acceleration, track_errors
+
+    gt = np.asarray(ref["gt_joints"], dtype=np.float64)
+    T = len(fused.params)
+    run_dir.mkdir()
+    d = np.linalg.norm(fused.joints - gt, axis=-1).mean(axis=1) if has_ground_truth else np.full(T, np.nan)
+    save_npz(run_dir / "track.npz", params=fused.params, joints=fused.joints, d_per_frame=d,
+             frame_indices=np.arange(T) if frame_indices is None else frame_indices, fused_runs=np.array(group),
+             nearest=fused.nearest, fitted=fused.fitted, param_names=np.array(model.param_names))
+    save_npz(run_dir / "joints.npz", joints=fused.joints, gt_joints=gt,
+             **{k: ref[k] for k in ("frame_times", "world_from_source") if k in ref})
+    times = ref.get("frame_times")
+    summary["acceleration_mm_s2"] = None if times is None else joint_acceleration(fused.joints, times)
+    errors = track_errors(fused.joints, gt) if has_ground_truth else None
+    if errors is not None:
+        summary.update(errors.summary())
+    (run_dir / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
+    return errors
