@@ -201,7 +201,8 @@ def track(
     measurements), ik.npz (the IK floor), summary.json (means over the runs and the worst run), and per
     run run_XXX/ with joints.npz (joints, gt_joints, frame_times, world_from_source), track.npz
     (parameters, fitness, evaluations, timings per frame), summary.json and progress.npz (what
-    --resume continues from). `swarmpose report FOLDER` draws it.
+    --resume continues from); with --consensus K also consensus/, the runs fused K at a time, a results
+    folder of its own. `swarmpose report FOLDER` draws it.
     """
     from swarmpose.track.runner import connect_scheduler, resolve_sequence, track_runs
     from swarmpose.track.tracker import TrackConfig
