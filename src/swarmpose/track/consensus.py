@@ -125,11 +125,10 @@ def write_consensus(results: Path, per_track: int, model: Any, constraint: Any =
                 shutil.copy2(results / name, tmp / name)
         ref = load_npz(results / f"run_{runs[0]:03d}" / "joints.npz", ("joints", "gt_joints"))
         gt = np.asarray(ref["gt_joints"], dtype=np.float64)
-        track0 = load_npz(results / f"run_{runs[0]:03d}" / "track.npz", ("params",))
         per_run, errors = [], []
         for k, group in enumerate(groups):
             t0 = time.perf_counter()
-            hyps, seconds = [], 0.0
+            hyps, seconds, frame_indices = [], 0.0, None
             for r in group:
                 run_dir = results / f"run_{r:03d}"
                 track = load_npz(run_dir / "track.npz", ("params",))
@@ -138,14 +137,15 @@ def write_consensus(results: Path, per_track: int, model: Any, constraint: Any =
                     raise DataError(f"{run_dir}: {h.shape[1]} frames tracked of {gt.shape[0]}: the run is unfinished "
                                     "(resume it first: swarmpose track ... --resume)")
                 hyps.append(h)
+                if frame_indices is None:
+                    frame_indices = track.get("frame_indices")
                 seconds += float(np.sum(track["seconds"])) if "seconds" in track else 0.0
             fused = consensus_params(model, np.concatenate(hyps), constraint)
             seconds += time.perf_counter() - t0
             summary = {"run": k, "fused_runs": group, "hypotheses": int(sum(len(h) for h in hyps)),
                        "frames_fitted": int(fused.fitted.sum()),
                        "frames_per_s": len(fused.params) / seconds if seconds > 0 else None}
-            e = _write_track(tmp / f"run_{k:03d}", fused, ref, track0.get("frame_indices"), group, model, summary,
-                             has_ground_truth)
+            e = _write_track(tmp / f"run_{k:03d}", fused, ref, frame_indices, group, model, summary, has_ground_truth)
             if e is not None:
                 errors.append(e)
             per_run.append(summary)
@@ -184,7 +184,8 @@ def _write_track(run_dir: Path, fused: Consensus, ref: dict[str, np.ndarray], fr
     gt = np.asarray(ref["gt_joints"], dtype=np.float64)
     T = len(fused.params)
     run_dir.mkdir()
-    d = np.linalg.norm(fused.joints - gt, axis=-1).mean(axis=1) if has_ground_truth else np.full(T, np.nan)
+    errors = track_errors(fused.joints, gt) if has_ground_truth else None  # frames without valid truth: NaN
+    d = np.full(T, np.nan) if errors is None else errors.d_per_frame
     save_npz(run_dir / "track.npz", params=fused.params, joints=fused.joints, d_per_frame=d,
              frame_indices=np.arange(T) if frame_indices is None else frame_indices, fused_runs=np.array(group),
              nearest=fused.nearest, fitted=fused.fitted, param_names=np.array(model.param_names))
@@ -192,7 +193,6 @@ def _write_track(run_dir: Path, fused: Consensus, ref: dict[str, np.ndarray], fr
              **{k: ref[k] for k in ("frame_times", "world_from_source") if k in ref})
     times = ref.get("frame_times")
     summary["acceleration_mm_s2"] = None if times is None else joint_acceleration(fused.joints, times)
-    errors = track_errors(fused.joints, gt) if has_ground_truth else None
     if errors is not None:
         summary.update(errors.summary())
     (run_dir / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
