@@ -212,3 +212,37 @@ def test_the_silhouettes_centroids_are_the_pixels_mean(seed, density, values):
         assert n[i] == xs.size
         if xs.size:
             assert x[i] / n[i] == xs.mean() and y[i] / n[i] == ys.mean()
+
+
+def test_a_resume_keeps_finished_runs_and_tracks_only_the_new_one(short_sequence, tmp_path, monkeypatch):
+    """``track --backward --resume`` on a folder whose runs are finished: nothing is tracked again (the backward
+    pass is not redone, the summaries stay); a run added by a larger --runs is tracked, and only it."""
+    import json
+
+    from swarmpose.track import runner
+
+    cfg = TrackConfig(algo="sppso", fps=30.0, seed=2, backward=True)
+    out = tmp_path / "res"
+    first = runner.track_runs(short_sequence, cfg, 1, out, workers=1, progress=False)
+    before = (out / "run_000" / "summary.json").read_text()
+    with np.load(out / "run_000" / "track.npz") as z:
+        params = z["params"].copy()
+    tracked = []
+    real = runner.run_tracker
+
+    def spy(setup, run, *args, **kwargs):
+        tracked.append(run)
+        return real(setup, run, *args, **kwargs)
+
+    monkeypatch.setattr(runner, "run_tracker", spy)
+    again = runner.track_runs(short_sequence, cfg, 1, out, resume=True, workers=1, progress=False)
+    assert tracked == []
+    assert (out / "run_000" / "summary.json").read_text() == before
+    assert again["d_mean_mm"] == first["d_mean_mm"] and again["per_run"] == first["per_run"]
+    more = runner.track_runs(short_sequence, cfg, 2, out, resume=True, workers=1, progress=False)
+    assert tracked == [1]
+    with np.load(out / "run_000" / "track.npz") as z:
+        assert np.array_equal(z["params"], params)
+    assert [r["run"] for r in more["per_run"]] == [0, 1]
+    assert more["per_run"][0] == first["per_run"][0]
+    assert json.loads((out / "run_001" / "summary.json").read_text())["backward_kept"] >= 0

@@ -124,7 +124,8 @@ def track(
                                         "every non-default setting that changes results, in this order: "
                                         "-<N>frames, -s<seed>, -ds<N>, model, fitness, variant, options, "
                                         "motion)."),
-    resume: bool = typer.Option(False, help="Continue an interrupted run in --out without redoing frames."),
+    resume: bool = typer.Option(False, help="Continue an interrupted run in --out without redoing frames (finished "
+                                "runs are kept as they are)."),
     model: str = typer.Option("balan31", help="Body model name or spec file."),
     fitness: str = typer.Option(
         "auto", help="auto (silhouette_edge; reprojection for aapso*), silhouette_edge, deutscher_reid, "

@@ -41,7 +41,7 @@ from swarmpose.track.tracker import (
 )
 
 __all__ = ["Job", "check_results_folder", "check_sequence_data", "close_client", "connect_scheduler",
-           "errors_from_summary", "resolve_sequence", "run_job", "run_jobs", "track_runs"]
+           "errors_from_summary", "finished_run", "resolve_sequence", "run_job", "run_jobs", "track_runs"]
 
 
 @dataclass(frozen=True)
@@ -163,8 +163,11 @@ def run_job(job: Job, progress: Callable[[int, int], None] | None = None) -> dic
 
     ``progress(frames_done, frames)`` is called after every tracked frame.
     """
-    cfg = TrackConfig(**job.config)
     out = Path(job.out_dir)
+    done = finished_run(out, job.run) if job.resume else None
+    if done is not None:  # tracked to the end by an earlier session: kept as it is, not tracked again
+        return {**done, "run": job.run, "out_dir": job.out_dir}
+    cfg = TrackConfig(**job.config)
     setup = prepare_track(job.sequence, cfg, out)
     res = run_tracker(setup, job.run, out, resume=job.resume, progress=progress, feature_cache=job.feature_cache)
     return {"run": job.run, "out_dir": job.out_dir, **res.errors}
@@ -191,14 +194,29 @@ def close_client(scheduler: Any) -> None:
         scheduler.close()
 
 
+def finished_run(out_dir: Path, run: int) -> dict[str, Any] | None:
+    """The errors of run ``run`` in ``out_dir`` when an earlier session tracked it to the end (its ``summary.json``,
+    ``track.npz`` and ``joints.npz`` written, the summary readable and naming that run); None otherwise. A resume
+    keeps such a run as it is: tracking it again would redo an offline run's backward pass (its forward frames are
+    saved, the backward pass is not) and rewrite its summary with an empty session's timing."""
+    run_dir = Path(out_dir) / f"run_{run:03d}"
+    if not all((run_dir / name).is_file() for name in ("summary.json", "track.npz", "joints.npz")):
+        return None
+    try:
+        summary = read_json_object(run_dir / "summary.json")
+    except (FormatError, OSError):
+        return None  # damaged: tracked again from its saved frames
+    return summary if summary.get("run") == run else None
+
+
 def _frames_saved(job: Job) -> int:
     """Frames of ``job`` tracked by an earlier session (``--resume``): all for a finished run, else the
     count in its ``progress.npz`` (0 when there is none or it cannot be read; the run reports itself)."""
     if not job.resume:
         return 0
-    run_dir = Path(job.out_dir) / f"run_{job.run:03d}"
-    if (run_dir / "summary.json").is_file() and (run_dir / "joints.npz").is_file():
+    if finished_run(Path(job.out_dir), job.run) is not None:
         return job.frames
+    run_dir = Path(job.out_dir) / f"run_{job.run:03d}"
     try:
         done = int(load_npz(run_dir / "progress.npz", ("done",))["done"])
     except (FormatError, OSError, ValueError, TypeError):  # missing or damaged: the run itself reports it
