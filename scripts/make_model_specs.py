@@ -161,6 +161,14 @@ THESIS_VARIANT = {  # thesis sec. 5.1.2, the four modifications of Balan's cones
 COLLISIONS = [["torso", "l_lower_arm"], ["torso", "r_lower_arm"], ["l_thigh", "r_thigh"], ["l_calf", "r_calf"],
               ["l_thigh", "r_calf"], ["r_thigh", "l_calf"]]  # (volume A, sphere chain B)
 
+# The shoulders' second branch of angles: abduction and flexion both past 90 deg turn the upper arm down again with a
+# twist that the rotation's limits (+-90 deg) leave out elsewhere; no IK-fitted pose of the eight shared clips goes
+# there, the tracker's arms did (the turn's right arm on 424 of 783 frames over 9 runs: docs/results.md).
+COUPLED = [{"parameters": [f"{s}_shoulder_abd", f"{s}_shoulder_flex"], "above": [90, 90],
+            "description": "abduction and flexion both past 90 deg turn the upper arm down again, twisted beyond the "
+                           "shoulder rotation's limits (the angles' second branch); no IK-fitted pose of the eight "
+                           "shared clips goes there"} for s in ("l", "r")]
+
 
 def balan31():
     legs_l, arms_l = side_params("l")
@@ -193,6 +201,7 @@ def balan31():
                             "offsets": OFFSETS, "cones": CONES},
         "variants": {"thesis": THESIS_VARIANT},
         "collision_pairs": COLLISIONS,
+        "coupled_limits": COUPLED,
     }
 
 
@@ -240,6 +249,7 @@ def full45():
                             "offsets": offsets, "cones": CONES},
         "variants": {"thesis": {k: v for k, v in THESIS_VARIANT.items() if k != "head"}},
         "collision_pairs": COLLISIONS,
+        "coupled_limits": COUPLED,
         "extra_markers": [["l_hand_tip", "l_hand_tip", ""], ["r_hand_tip", "r_hand_tip", ""],
                           ["l_toe", "l_toe", ""], ["r_toe", "r_toe", ""]],
     }

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -187,12 +189,13 @@ def test_numba_collisions_match_the_reference_at_any_tolerance(tol):
 
 
 @pytest.mark.parametrize("spec", ["balan31", "full45"])
-@pytest.mark.parametrize("limits, collisions", [(True, True), (False, True), (True, False)])
-def test_the_fused_check_agrees_with_the_plain_one(spec, limits, collisions):
+@pytest.mark.parametrize("limits, collisions, coupled", [(True, True, False), (False, True, False),
+                                                         (True, False, False), (True, True, True)])
+def test_the_fused_check_agrees_with_the_plain_one(spec, limits, collisions, coupled):
     """valid (one numba pass: limits, kinematics, collisions) against valid_reference (numpy limits, then the
     collision kernel on batched kinematics), on poses spread a little past the limits, so that both answers occur."""
     m = load_model(spec)
-    pr = HardPriors(m, check_limits=limits, check_collisions=collisions)
+    pr = HardPriors(m, check_limits=limits, check_collisions=collisions, coupled_limits=coupled)
     rng = np.random.default_rng(5)
     x = np.tile(m.zero_pose(), (3000, 1))
     x[:, m.param_index("pelvis_tz")] = 1000.0
@@ -230,3 +233,43 @@ def test_segment_distance_is_the_closest_approach():
         exact = np.sqrt(segment_distance2(*a, *b, *r, *t))
         assert exact <= grid + 1e-9
         assert grid - exact <= 0.01 * (np.linalg.norm(b - a) + np.linalg.norm(t - r)) + 1e-9
+
+
+def test_the_shoulders_second_branch_is_out_with_the_coupled_limits(model):
+    """Abduction and flexion both past 90 deg (each inside its own limits) is out only with ``coupled_limits``; either
+    alone past 90 is in. Such a pose is the same upper arm as one of the first branch twisted 180 deg about it (the
+    angles' other solution), a twist the rotation's +-90 deg limits leave out there."""
+    on = HardPriors(model, coupled_limits=True)
+    off = HardPriors(model)
+    for side in ("l", "r"):
+        abd, flex, rot = f"{side}_shoulder_abd", f"{side}_shoulder_flex", f"{side}_shoulder_rot"
+        both = pose(model, **{abd: 178, flex: 166, rot: 10})
+        ok = np.stack([pose(model, **{abd: 170}), pose(model, **{flex: 170}), pose(model, **{abd: 90, flex: 170}),
+                       pose(model, **{abd: 95, flex: 60})])
+        assert not on.valid(both[None])[0] and off.valid(both[None])[0]
+        assert on.valid(ok).all() and off.valid(ok).all()
+        assert not on.valid_reference(both[None])[0]
+        # the other branch's twin: the same upper arm, its twist 160 deg from the pose's, outside the rotation limits
+        twin = pose(model, **{abd: 178 - 180, flex: 180 - 166, rot: 10 - 180})
+        j = model.joints15(np.stack([both, twin]))
+        assert np.allclose(j[0], j[1], atol=1e-6)
+        assert not model.within_limits(twin[None])[0]
+
+
+def test_the_spec_refuses_a_bad_coupled_limit(tmp_path):
+    import json
+
+    from swarmpose.body.spec import load_spec
+    from swarmpose.errors import FormatError
+
+    src = json.loads((Path(__file__).resolve().parents[2] / "src/swarmpose/models/balan31.json").read_text())
+    for entry, field in (({"parameters": ["l_shoulder_abd", "nose"], "above": [90, 90]}, "coupled_limits[0]"),
+                         ({"parameters": ["l_shoulder_abd", "l_shoulder_flex"], "above": [90, 200]}, "coupled_limits[0]"),
+                         ({"parameters": ["l_shoulder_abd"], "above": [90]}, "coupled_limits[0]"),
+                         ({"parameters": ["l_shoulder_abd", "l_shoulder_flex"]}, "coupled_limits[0].above")):
+        bad = dict(src, coupled_limits=[entry])
+        path = tmp_path / "bad.json"
+        path.write_text(json.dumps(bad))
+        with pytest.raises(FormatError) as err:
+            load_spec(path)
+        assert field in str(err.value) and "bad.json" in str(err.value)

@@ -65,6 +65,24 @@ def test_refined_keypoints_is_refined_with_the_keypoint_term(balan31):
     assert (kp.refine_budget, kp.base.n_particles, kp.base.n_layers) == (200, 200, 6)
 
 
+def test_the_default_tracks_under_the_coupled_limits_and_a_variant_turns_them_off():
+    from swarmpose.body.model import load_model
+    from swarmpose.optim.variants import apply_variant
+    from swarmpose.track.tracker import tracker_priors
+
+    balan31 = load_model("balan31")
+    default = get("refined-heading", model=balan31, fps=20)
+    assert default.coupled_limits and tracker_priors(balan31, default).coupled_limits
+    off = apply_variant(default, "coupled_limits=off")
+    assert not off.coupled_limits and not tracker_priors(balan31, off).coupled_limits
+    assert off.evals_per_frame == default.evals_per_frame
+    for name in ("refined", "refined-limbs", "sppso", "apf-dr05"):  # the benchmarks keep the parameters' own limits
+        assert not tracker_priors(balan31, get(name, model=balan31, fps=20)).coupled_limits
+    assert apply_variant(get("refined", model=balan31, fps=20), "coupled_limits=on").coupled_limits
+    with pytest.raises(ConfigError, match="coupled_limits=on or coupled_limits=off"):
+        apply_variant(get("sppso", model=balan31, fps=20), "coupled_limits=on")
+
+
 def test_cli_json_and_table(capsys):
     algorithms_command(json=True)
     out = capsys.readouterr().out

@@ -54,12 +54,14 @@ def _run(opt, target, iterations):
     return asks, valids
 
 
-@pytest.mark.parametrize(("collisions", "tolerance", "max_redraws", "seed"),
-                         [(True, 0.5, 10, 0), (True, 0.5, 10, 1), (False, 0.5, 10, 2), (True, 0.0, 0, 3),
-                          (True, 0.0, 2, 4)])
-def test_compiled_moves_are_the_plain_moves(model, collisions, tolerance, max_redraws, seed):
-    priors = HardPriors(model, penetration_tolerance=tolerance, check_collisions=collisions)
+@pytest.mark.parametrize(("collisions", "tolerance", "max_redraws", "seed", "coupled"),
+                         [(True, 0.5, 10, 0, False), (True, 0.5, 10, 1, False), (False, 0.5, 10, 2, False),
+                          (True, 0.0, 0, 3, False), (True, 0.0, 2, 4, False), (True, 0.5, 10, 5, True)])
+def test_compiled_moves_are_the_plain_moves(model, collisions, tolerance, max_redraws, seed, coupled):
+    priors = HardPriors(model, penetration_tolerance=tolerance, check_collisions=collisions, coupled_limits=coupled)
     x0 = _start(model, np.random.default_rng(seed))
+    if coupled:  # the right arm raised near both 90-degree bounds of the coupled limit: moves cross it often
+        x0[model.param_index("r_shoulder_abd")] = x0[model.param_index("r_shoulder_flex")] = np.radians(88.0)
     sigma = 3.0 * model.sigma  # wide moves: many leave the limits or collide, some stay invalid after the re-draws
     target = x0 + 5.0 * model.sigma
     plain = _Counting(priors.valid)
@@ -82,6 +84,17 @@ def test_compiled_moves_are_the_plain_moves(model, collisions, tolerance, max_re
     assert np.any((moved == model.lower) | (moved == model.upper))
     if tolerance == 0.0:  # any contact collides: some moves stay invalid after their re-draws
         assert not np.all(np.concatenate(v_p[1:]))
+    if coupled:  # without the coupled limit the same swarm goes into the region; with it no valid move lies there
+        def inside(x):
+            return (x[:, model.param_index("r_shoulder_abd")] > np.pi / 2) & (
+                x[:, model.param_index("r_shoulder_flex")] > np.pi / 2)
+
+        free = ConstrictedPSO(x0, sigma, 12, 15, np.random.default_rng(seed), lower=model.lower, upper=model.upper,
+                              constraint=PriorsConstraint(HardPriors(model, penetration_tolerance=tolerance)),
+                              max_redraws=max_redraws)
+        free_asks, free_valid = _run(free, target, 15)
+        assert any((inside(x) & v).any() for x, v in zip(free_asks[1:], free_valid[1:], strict=True))
+        assert not any((inside(x) & v).any() for x, v in zip(a_p[1:], v_p[1:], strict=True))
 
 
 def test_staged_pso_with_the_compiled_moves(model):

@@ -44,6 +44,10 @@ class HardPriors:
     penetration_tolerance : see the module docstring; 0 = any contact of the cones is a collision.
     spheres_per_cone : samples along ``B``'s axis.
     check_limits, check_collisions : switch either test off.
+    coupled_limits : also reject the regions of the spec's ``coupled_limits`` (every parameter of an entry above
+        its value: the shoulders' second branch of angles, where the upper arm hangs twisted beyond its rotation
+        limits). Off by default, so the benchmark trackers keep the parameters' own limits; the default tracker
+        turns it on (``RefinedConfig.coupled_limits``).
     """
 
     model: BodyModel
@@ -51,6 +55,7 @@ class HardPriors:
     spheres_per_cone: int = 8
     check_limits: bool = True
     check_collisions: bool = True
+    coupled_limits: bool = False
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.penetration_tolerance < 1.0:
@@ -66,6 +71,14 @@ class HardPriors:
                 raise ConfigError(f"collision cone {names[a]!r} lies in its joint frame's x-y plane; its "
                                   "cross-sections (in that plane) would not span a volume")
         self._frac = np.linspace(0.0, 1.0, self.spheres_per_cone)
+        limits = self.model.spec.coupled_limits if self.coupled_limits else ()
+        width = max((len(c.parameters) for c in limits), default=1)
+        # (M, width) parameter indices (-1: none) and the values every one of them must exceed for the pose to be out
+        self._coupled_index = np.full((len(limits), width), -1, dtype=np.int64)
+        self._coupled_above = np.zeros((len(limits), width))
+        for i, c in enumerate(limits):
+            self._coupled_index[i, :len(c.parameters)] = [self.model.param_index(n) for n in c.parameters]
+            self._coupled_above[i, :len(c.above)] = c.above
 
     def __call__(self, poses: np.ndarray) -> np.ndarray:
         return self.valid(poses)
@@ -79,12 +92,14 @@ class HardPriors:
         return out
 
     def kernel_tables(self) -> tuple:
-        """The arguments of :func:`pose_valid` after the pose and its scratch: limits, kinematic and cone tables,
-        collision pairs (none when ``check_collisions`` is off), sphere fractions, ``1 - penetration_tolerance``."""
+        """The arguments of :func:`pose_valid` after the pose and its scratch: limits, coupled limits (none unless
+        ``coupled_limits``), kinematic and cone tables, collision pairs (none when ``check_collisions`` is off),
+        sphere fractions, ``1 - penetration_tolerance``."""
         ca = self.model.cone_arrays
         pairs = self._pairs if self.check_collisions else self._pairs[:0]
-        return (self.model.lower, self.model.upper, self.check_limits, *self.model.kin.as_tuple(), ca.joint,
-                ca.start, ca.end, ca.radii, ca.scale, pairs, self._frac, 1.0 - self.penetration_tolerance)
+        return (self.model.lower, self.model.upper, self.check_limits, self._coupled_index, self._coupled_above,
+                *self.model.kin.as_tuple(), ca.joint, ca.start, ca.end, ca.radii, ca.scale, pairs, self._frac,
+                1.0 - self.penetration_tolerance)
 
     def valid_reference(self, poses: np.ndarray) -> np.ndarray:
         """Plain version of :meth:`valid`: the limits and :meth:`collisions`, as separate batched steps."""
@@ -92,6 +107,9 @@ class HardPriors:
         ok = np.ones(p.shape[0], dtype=bool)
         if self.check_limits:
             ok &= self.model.within_limits(p)
+            for idx, above in zip(self._coupled_index, self._coupled_above, strict=True):
+                used = idx >= 0
+                ok &= ~np.all(p[:, idx[used]] > above[used], axis=1)
         if self.check_collisions and len(self._pairs):
             ok &= ~self.collisions(p).any(axis=1)
         return ok
@@ -256,15 +274,24 @@ def _collisions_kernel(T, joint, start, end, radii, scale, pairs, frac, keep, ou
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
-def pose_valid(pose, T, lower, upper, check_limits, parents, offsets, rot_axis, rot_sign, rot_param, trans_param,
-               joint, start, end, radii, scale, pairs, frac, keep):
-    """One pose of :meth:`HardPriors.valid`: the limits, then (inside them) kinematics into the scratch ``T (J, 3, 4)``
-    and the collision pairs, stopping at the first pair that collides. The arguments after ``T`` are
-    :meth:`HardPriors.kernel_tables`."""
+def pose_valid(pose, T, lower, upper, check_limits, c_index, c_above, parents, offsets, rot_axis, rot_sign, rot_param,
+               trans_param, joint, start, end, radii, scale, pairs, frac, keep):
+    """One pose of :meth:`HardPriors.valid`: the limits and the coupled limits, then (inside them) kinematics into the
+    scratch ``T (J, 3, 4)`` and the collision pairs, stopping at the first pair that collides. The arguments after
+    ``T`` are :meth:`HardPriors.kernel_tables`."""
     if check_limits:
         for d in range(pose.shape[0]):
             v = pose[d]
             if not (v >= lower[d] and v <= upper[d]):
+                return False
+        for i in range(c_index.shape[0]):  # a coupled limit: out when every one of its parameters is above its value
+            out = True
+            for q in range(c_index.shape[1]):
+                d = c_index[i, q]
+                if d >= 0 and not pose[d] > c_above[i, q]:
+                    out = False
+                    break
+            if out:
                 return False
     if pairs.shape[0] > 0:
         fk_pose_into(pose, parents, offsets, rot_axis, rot_sign, rot_param, trans_param, T)
@@ -275,10 +302,10 @@ def pose_valid(pose, T, lower, upper, check_limits, parents, offsets, rot_axis, 
 
 
 @nb.njit(cache=True, nogil=True)
-def _valid_kernel(poses, lower, upper, check_limits, parents, offsets, rot_axis, rot_sign, rot_param, trans_param,
-                  joint, start, end, radii, scale, pairs, frac, keep, out):
+def _valid_kernel(poses, lower, upper, check_limits, c_index, c_above, parents, offsets, rot_axis, rot_sign, rot_param,
+                  trans_param, joint, start, end, radii, scale, pairs, frac, keep, out):
     """:meth:`HardPriors.valid` in one pass (:func:`pose_valid` per pose)."""
     T = np.empty((parents.shape[0], 3, 4))
     for n in range(poses.shape[0]):
-        out[n] = pose_valid(poses[n], T, lower, upper, check_limits, parents, offsets, rot_axis, rot_sign, rot_param,
-                            trans_param, joint, start, end, radii, scale, pairs, frac, keep)
+        out[n] = pose_valid(poses[n], T, lower, upper, check_limits, c_index, c_above, parents, offsets, rot_axis,
+                            rot_sign, rot_param, trans_param, joint, start, end, radii, scale, pairs, frac, keep)

@@ -32,6 +32,7 @@ from swarmpose.io.files import read_json_object
 
 __all__ = [
     "ParameterSpec",
+    "CoupledLimit",
     "JointSpec",
     "ConeSpec",
     "BodySpec",
@@ -64,6 +65,18 @@ class ParameterSpec:
     group: str
     description: str = ""
     tags: tuple[str, ...] = ()  # further group names, e.g. "head_twist"
+
+
+@dataclass(frozen=True)
+class CoupledLimit:
+    """A region the parameters' own limits leave open but no body reaches: a pose is outside the limits when every
+    parameter of ``parameters`` is above its value in ``above`` (radians or mm). The spec's shoulders use it for the
+    double-turned branch of their angles (abduction and flexion both past 90 deg: the upper arm down again, its twist
+    beyond the rotation's limits)."""
+
+    parameters: tuple[str, ...]
+    above: tuple[float, ...]
+    description: str = ""
 
 
 @dataclass(frozen=True)
@@ -164,6 +177,7 @@ class BodySpec:
     default_subject: Subject
     variants: dict[str, dict[str, dict[str, float]]] = field(default_factory=dict)
     collision_pairs: tuple[tuple[str, str], ...] = ()
+    coupled_limits: tuple[CoupledLimit, ...] = ()
     references: tuple[str, ...] = ()
     extra_markers: tuple[tuple[str, str, str], ...] = ()  # (marker name, joint, measurement)
 
@@ -188,6 +202,7 @@ class BodySpec:
             if key not in data:
                 raise FormatError("missing field", path=path, field=key)
         params = []
+        scales: dict[str, float] = {}
         for i, p in enumerate(data["parameters"]):
             where = f"parameters[{i}]"
             try:
@@ -196,6 +211,7 @@ class BodySpec:
                     raise FormatError(f"kind must be 'rotation' or 'translation', got {kind!r}",
                                       path=path, field=where + ".kind")
                 scale = np.pi / 180.0 if (kind == "rotation" and p.get("unit", "deg") == "deg") else 1.0
+                scales[str(p["name"])] = scale
                 lower = -np.inf if p.get("lower") is None else float(p["lower"]) * scale
                 upper = np.inf if p.get("upper") is None else float(p["upper"]) * scale
                 params.append(ParameterSpec(
@@ -237,6 +253,7 @@ class BodySpec:
             default_subject=Subject.from_dict(data["default_subject"], path=path),
             variants={str(k): v for k, v in data.get("variants", {}).items()},
             collision_pairs=tuple(tuple(p) for p in data.get("collision_pairs", [])),
+            coupled_limits=_coupled_limits(data.get("coupled_limits", []), scales, path),
             references=tuple(data.get("references", [])),
             extra_markers=tuple(tuple(m) for m in data.get("extra_markers", [])),
         )
@@ -296,11 +313,42 @@ class BodySpec:
             if a not in cone_names or b not in cone_names:
                 raise FormatError(f"collision pair ({a}, {b}) names an unknown cone", path=path,
                                   field="collision_pairs")
+        bounds = {p.name: (p.lower, p.upper) for p in self.parameters}
+        for i, c in enumerate(self.coupled_limits):
+            for name, value in zip(c.parameters, c.above, strict=True):
+                if name not in bounds:
+                    raise FormatError(f"unknown parameter {name!r}", path=path, field=f"coupled_limits[{i}]")
+                if not bounds[name][0] < value < bounds[name][1]:
+                    raise FormatError(f"{name}: {value!r} is not inside the parameter's limits, so the region "
+                                      "would be empty or the whole range", path=path, field=f"coupled_limits[{i}]")
         for vname, changes in self.variants.items():
             for cname in changes:
                 if cname not in cone_names:
                     raise FormatError(f"variant {vname!r} changes unknown cone {cname!r}", path=path,
                                       field=f"variants.{vname}")
+
+
+def _coupled_limits(entries: Any, scales: dict[str, float], path: object) -> tuple[CoupledLimit, ...]:
+    """``coupled_limits`` of a spec's JSON: ``[{"parameters": [A, B, ...], "above": [a, b, ...]}]`` in the
+    parameters' own units (degrees unless a rotation says ``"unit": "rad"``), converted like their limits."""
+    if not isinstance(entries, list):
+        raise FormatError("expected a list", path=path, field="coupled_limits")
+    out = []
+    for i, e in enumerate(entries):
+        where = f"coupled_limits[{i}]"
+        try:
+            names = tuple(str(n) for n in e["parameters"])
+            values = tuple(float(v) for v in e["above"])
+        except KeyError as exc:
+            raise FormatError("missing field", path=path, field=f"{where}.{exc.args[0]}") from None
+        except (TypeError, ValueError):
+            raise FormatError("parameters must be names and above numbers", path=path, field=where) from None
+        if len(names) < 2 or len(names) != len(values) or not np.all(np.isfinite(values)):
+            raise FormatError(f"expected two or more parameters and as many finite values above, got {len(names)} "
+                              f"and {len(values)}", path=path, field=where)
+        above = tuple(v * scales.get(n, 1.0) for n, v in zip(names, values, strict=True))
+        out.append(CoupledLimit(parameters=names, above=above, description=str(e.get("description", ""))))
+    return tuple(out)
 
 
 def _vec3(v: Any, path: object, fld: str) -> tuple[float, float, float]:

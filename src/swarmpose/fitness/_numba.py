@@ -38,7 +38,7 @@ from swarmpose.render._kernels import (
 #: fitness/threads.py).
 #: numba's cache sees edits to this file only, so an edit there must change this line (or cached kernels keep
 #: running the old code); tests/test_numba_cache.py says when and gives the new value.
-INLINED_SOURCES_SHA1 = "22a1dabd078f72d9"
+INLINED_SOURCES_SHA1 = "33cdf34a4b5bdb0c"
 
 __all__ = ["copy_joints", "eval_claim", "eval_claim_go", "eval_kernel", "eval_share", "row_prefix_sums"]
 

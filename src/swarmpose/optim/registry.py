@@ -405,6 +405,10 @@ class RefinedConfig(OptimizerConfig):
         Fitness options of every search of a frame (the base search, the refinement, the heading and limb
         searches), under the run's own ``--fitness-options``; read by the tracker only. ``{"keypoints": W}``
         weighs the detector's keypoints where the sequence carries them and changes nothing where it does not.
+    coupled_limits : bool
+        The tracker's hard priors also reject the body model's coupled limits (``HardPriors(coupled_limits=True)``:
+        the shoulders' second branch of angles, the upper arm hanging twisted beyond its rotation limits); read by
+        the tracker only.
     """
 
     base: OptimizerConfig | None = None
@@ -417,6 +421,7 @@ class RefinedConfig(OptimizerConfig):
     turn_search: Mapping[str, Any] = field(default_factory=dict)
     heading_speed: float | None = None
     frame_options: Mapping[str, Any] = field(default_factory=dict)
+    coupled_limits: bool = False
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -613,14 +618,15 @@ def _refined_limbs(model: Any, fps: float) -> RefinedConfig:
 
 def _refined_heading(model: Any, fps: float) -> RefinedConfig:
     """The default tracker: ``refined-limbs`` with the body's heading searched again on every frame (:data:`TURN_SEARCH`),
-    and, where the sequence carries a detector's keypoints, the keypoint term (weight :data:`KEYPOINT_WEIGHT`, the
+    the body model's coupled limits among the hard priors (the shoulders' second branch of angles left out), and,
+    where the sequence carries a detector's keypoints, the keypoint term (weight :data:`KEYPOINT_WEIGHT`, the
     detector's elbows where :data:`KEYPOINT_ELBOW` puts them, the joints weighed as :data:`KEYPOINT_JOINTS` says) in
     every search of a frame and the keypoint IK after them. On a sequence without keypoints it is ``refined-limbs
-    --variant turn=on``, pose for pose."""
+    --variant turn=on+coupled_limits=on``, pose for pose."""
     return dataclasses.replace(_refined_limbs(model, fps), name="refined-heading", turn_search=TURN_SEARCH,
                                frame_options={"keypoints": KEYPOINT_WEIGHT, "keypoint_elbow": KEYPOINT_ELBOW,
                                               "keypoint_joints": KEYPOINT_JOINTS},
-                               keypoint_ik=True)
+                               keypoint_ik=True, coupled_limits=True)
 
 
 #: Weight of the keypoint term in ``refined-keypoints``, chosen on the shared recording (cam04 held out, 20 fps,

@@ -39,8 +39,10 @@ def apply_variant(config: Any, variant: str) -> Any:
       more than M above the frame's pose; ``turn_keypoints=on``: also the turn that lays the model's hips onto the
       frame's triangulated keypoints (sequences with keypoints); ``heading_speed=D``: the part of the heading's last step beyond D degrees
       carried on into the prediction; ``keypoint_ik=on``: each frame's pose fitted to the triangulated
-      keypoints from where the searches left it, kept when it scores higher (sequences with keypoints); several variants are
-      joined by ``+`` (``apf=200x5+refine=0``).
+      keypoints from where the searches left it, kept when it scores higher (sequences with keypoints);
+      ``coupled_limits=on``: the hard priors also reject the body model's coupled limits (the shoulders' second
+      branch of angles; on in the default tracker, ``off`` turns them off); several variants are joined by ``+``
+      (``apf=200x5+refine=0``).
     """
     if not variant:
         return config
@@ -49,9 +51,9 @@ def apply_variant(config: Any, variant: str) -> Any:
             config = apply_variant(config, part)
         return config
     head = variant.partition("=")[0].strip()
-    if head in ("height", "turn", "keypoint_ik"):
+    if head in ("height", "turn", "keypoint_ik", "coupled_limits"):
         field, on = {"height": ("silhouette_height", "silhouettes"), "turn": ("turn_search", "on"),
-                     "keypoint_ik": ("keypoint_ik", "on")}[head]
+                     "keypoint_ik": ("keypoint_ik", "on"), "coupled_limits": ("coupled_limits", "on")}[head]
         value = variant.partition("=")[2].strip()
         if not hasattr(config, field) or value not in (on, "off"):
             raise ConfigError(f"variant {variant!r}: expected {head}={on} or {head}=off on a refined "

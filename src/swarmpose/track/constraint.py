@@ -25,7 +25,7 @@ __all__ = ["PriorsConstraint"]
 
 #: Hash of the kernel sources this module's cached kernel calls (body/priors.py and what it calls,
 #: optim/operators.py): numba's cache sees edits to this file only (tests/test_numba_cache.py gives the value).
-INLINED_SOURCES_SHA1 = "f2bef33967649ee3"
+INLINED_SOURCES_SHA1 = "7263e06c7c92fe02"
 
 
 class PriorsConstraint:
@@ -67,10 +67,10 @@ def _feasible(pose, lower, upper, T, tables):
     for d in range(pose.shape[0]):
         if not (pose[d] >= lower[d] and pose[d] <= upper[d]):
             return False
-    (plo, pup, check_limits, parents, offsets, rot_axis, rot_sign, rot_param, trans_param, joint, start, end, radii,
-     scale, pairs, frac, keep) = tables
-    return pose_valid(pose, T, plo, pup, check_limits, parents, offsets, rot_axis, rot_sign, rot_param, trans_param,
-                      joint, start, end, radii, scale, pairs, frac, keep)
+    (plo, pup, check_limits, c_index, c_above, parents, offsets, rot_axis, rot_sign, rot_param, trans_param, joint,
+     start, end, radii, scale, pairs, frac, keep) = tables
+    return pose_valid(pose, T, plo, pup, check_limits, c_index, c_above, parents, offsets, rot_axis, rot_sign,
+                      rot_param, trans_param, joint, start, end, radii, scale, pairs, frac, keep)
 
 
 @nb.njit(cache=True, nogil=True)

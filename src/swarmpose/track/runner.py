@@ -37,6 +37,7 @@ from swarmpose.track.tracker import (
     run_tracker,
     sequence_identity,
     sequence_location,
+    tracker_priors,
     write_config,
 )
 
@@ -469,10 +470,10 @@ def track_runs(sequence: str | Path, config: TrackConfig, runs: int, out_dir: Pa
         summary = _track_jobs(sequence, config, runs, out_dir, setup, resume=resume, workers=workers,
                               scheduler=scheduler, progress=progress, feature_cache=feature_cache)
         if consensus:
-            from swarmpose.body.priors import HardPriors
             from swarmpose.track.consensus import write_consensus
 
-            summary["consensus"] = write_consensus(out_dir, consensus, setup.model, HardPriors(setup.model).valid,
+            priors = tracker_priors(setup.model, config.optimizer(setup.model))  # the runs' own hard priors
+            summary["consensus"] = write_consensus(out_dir, consensus, setup.model, priors.valid,
                                                    setup.has_ground_truth)
             (out_dir / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
         return summary

@@ -67,7 +67,7 @@ from swarmpose.track.turn import TurnSearch
 LIMB_NAMES = tuple(LIMBS)
 
 __all__ = ["TrackConfig", "RunResult", "prepare_track", "run_tracker", "TrackSetup", "versions", "model_identity",
-           "sequence_identity", "sequence_location", "ground_truth_identity", "observation_identity"]
+           "sequence_identity", "sequence_location", "ground_truth_identity", "observation_identity", "tracker_priors"]
 
 
 
@@ -557,6 +557,12 @@ class RunResult:
         return float(len(self.seconds) / max(self.seconds.sum(), 1e-12))
 
 
+def tracker_priors(model: Any, algo: Any) -> HardPriors:
+    """The hard priors a run of ``algo`` tracks under: the model's limits and collisions, and its coupled limits where
+    the configuration asks for them (``coupled_limits``: the default tracker)."""
+    return HardPriors(model, coupled_limits=bool(getattr(algo, "coupled_limits", False)))
+
+
 def _make_fitness(setup: TrackSetup):
     from swarmpose.fitness import make_fitness
 
@@ -620,7 +626,7 @@ def run_tracker(
         extra_options = {**algo.frame_options, **extra_options}  # the configuration's, under the run's own
     feature_options = parse_feature_options(cfg.feature_options)
     timer = PartTimer()
-    constraint = PriorsConstraint(HardPriors(model), timer)  # timed as "priors"; PSO moves compiled
+    constraint = PriorsConstraint(tracker_priors(model, algo), timer)  # timed as "priors"; PSO moves compiled
     untimed_fitness = _make_fitness(setup)
     fitness = TimedFitness(untimed_fitness, timer)
     T, D = len(setup.frame_indices), model.n_params
