@@ -167,7 +167,7 @@ def ik(
     body = BodyModel(spec, subject_from_clip(spec, c), "thesis" if "thesis" in spec.variants else None)
     with tqdm(total=c.frames, desc=f"IK {c.name}", unit="frame", file=sys.stderr, disable=json_out) as bar:
         res = fit_ik(body, c.joints, progress=lambda _k: bar.update(1))
-    valid = HardPriors(body).valid(res.floor_params)
+    valid = HardPriors(body, coupled_limits=True).valid(res.floor_params)  # as the default tracker has them
     per_joint = res.joint_error_mm.mean(axis=0)
     data = {
         "clip": str(clip),
@@ -192,7 +192,7 @@ def ik(
         return
     console.print(f"[bold]{escape(c.name)}[/bold]: {c.frames} frames at {c.frame_rate:g} fps, model {body.name}")
     console.print(f"  IK floor: mean {res.floor_mean_mm:.2f} mm, max {res.floor_max_mm:.2f} mm; "
-                  f"{100 * valid.mean():.1f} % of fitted poses satisfy the hard priors")
+                  f"{100 * valid.mean():.1f} % of fitted poses satisfy the hard priors (with the coupled limits)")
     worst = sorted(data["per_joint_mm"].items(), key=lambda kv: -kv[1])[:4]
     console.print("  largest per-joint errors: " + ", ".join(f"{n} {v:.1f} mm" for n, v in worst))
     if out is not None:
