@@ -52,20 +52,20 @@ def _track(path: Path, algo: str, variant: str = "", options: str = "", *, ik_ra
 def test_the_default_weighs_keypoints_where_the_sequence_has_them(short_sequence: Path, keypoint_sequence: Path):
     from swarmpose.body.model import load_model
     from swarmpose.optim import registry
-    from swarmpose.optim.registry import KEYPOINT_ELBOW, KEYPOINT_JOINTS, KEYPOINT_WEIGHT
+    from swarmpose.optim.registry import FRAME_KEYPOINT_WEIGHT, KEYPOINT_ELBOW, KEYPOINT_JOINTS
     from swarmpose.track.start import has_keypoints
 
     with open_sequence(short_sequence) as plain, open_sequence(keypoint_sequence) as kp:
         assert not has_keypoints(plain) and has_keypoints(kp) and kp.gt_joints is not None
     assert registry.get("refined-heading", model=load_model("balan31"), fps=20).frame_options == {
-        "keypoints": KEYPOINT_WEIGHT, "keypoint_elbow": KEYPOINT_ELBOW, "keypoint_joints": KEYPOINT_JOINTS}
+        "keypoints": FRAME_KEYPOINT_WEIGHT, "keypoint_elbow": KEYPOINT_ELBOW, "keypoint_joints": KEYPOINT_JOINTS}
     # without keypoints: refined-limbs with the turn search, pose for pose
     np.testing.assert_array_equal(_track(short_sequence, "refined-heading", ik_ran=False),
                                   _track(short_sequence, "refined-limbs", "turn=on"))
     # with them: the term in every search, as the run's own --fitness-options would put it there, and the IK
     heading = _track(keypoint_sequence, "refined-heading", ik_ran=True)
     np.testing.assert_array_equal(heading, _track(keypoint_sequence, "refined-limbs", "turn=on+keypoint_ik=on",
-                                                  f"keypoints={KEYPOINT_WEIGHT:g},keypoint_elbow={KEYPOINT_ELBOW},"
+                                                  f"keypoints={FRAME_KEYPOINT_WEIGHT:g},keypoint_elbow={KEYPOINT_ELBOW},"
                                                   f"keypoint_joints={KEYPOINT_JOINTS}"))
     assert not np.array_equal(heading, _track(keypoint_sequence, "refined-limbs", "turn=on+keypoint_ik=on"))
     # the run's own options go over the configuration's: keypoints=0 turns the term off
