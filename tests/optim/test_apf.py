@@ -56,6 +56,37 @@ def test_estimate_is_weighted_mean_and_carry_is_final_weighted_set():
         AnnealedParticleFilter(np.zeros((5, 2)), np.ones(2), 2, np.random.default_rng(0)).carry()
 
 
+def test_a_proposal_takes_its_share_of_the_carried_weight():
+    """``with_proposal``: the lowest-weight quarter of the set becomes the proposal, which weighs a quarter; the
+    others keep their proportions; the next frame's resampling draws it in about a quarter of its centres."""
+    from swarmpose.optim.base import ConfigError, ShapeError
+
+    rng = np.random.default_rng(4)
+    n, d = 200, 3
+    carried = ParticleSet(rng.normal(size=(n, d)), rng.random(n) + 0.01)
+    x = np.array([5.0, -5.0, 5.0])
+    prop = carried.with_proposal(x, 0.25)
+    is_x = np.all(prop.particles == x, axis=1)
+    low = np.argsort(carried.weights, kind="stable")[:50]
+    assert is_x.sum() == 50 and set(np.flatnonzero(is_x)) == set(low.tolist())
+    assert prop.weights[is_x].sum() == pytest.approx(0.25) and prop.weights.sum() == pytest.approx(1.0)
+    kept = ~is_x
+    np.testing.assert_array_equal(prop.particles[kept], carried.particles[kept])
+    np.testing.assert_allclose(prop.weights[kept] / prop.weights[kept].sum(),
+                               carried.weights[kept] / carried.weights[kept].sum())
+    assert carried.with_proposal(x, 0.0) is carried
+    assert np.all(carried.with_proposal(x, 0.001).particles == x, axis=1).sum() == 1  # at least one
+    for bad in (1.0, -0.1, float("nan")):
+        with pytest.raises(ConfigError, match="share"):
+            carried.with_proposal(x, bad)
+    with pytest.raises(ShapeError):
+        carried.with_proposal(np.zeros(2), 0.25)
+    # resampled as the next frame's centres: about 50 of 200 at the proposal (binomial sd 6.1; 4 sd margin)
+    apf = AnnealedParticleFilter.start(np.zeros(d), np.full(d, 1e-9), n, 2, np.random.default_rng(5), carry=prop)
+    near = np.all(np.abs(apf.ask() - x) < 1e-6, axis=1).sum()
+    assert 26 <= near <= 74
+
+
 def test_next_frame_starts_from_carried_set_plus_b0():
     """eq. 9: S_{t+1,M} = resampled S_{t,0} + B_0."""
     rng = np.random.default_rng(3)

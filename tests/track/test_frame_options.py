@@ -105,6 +105,58 @@ def test_the_keypoint_ik_variant():
         apply_variant(registry.get("sppso", model=model, fps=20), "keypoint_ik=on")
 
 
+def _check_variant(head: str, value: str, expected: float, bad: tuple[str, ...], match: str, refused_by: str,
+                   refused_match: str) -> None:
+    """On the default, ``head=value`` sets its field ``head`` (0 by default) to ``expected`` and ``head=off`` back to
+    0; each of ``bad`` is refused with ``match``, and the variant on ``refused_by`` with ``refused_match``."""
+    from swarmpose.body.model import load_model
+    from swarmpose.errors import ConfigError
+    from swarmpose.optim import registry
+    from swarmpose.optim.variants import apply_variant
+
+    model = load_model("balan31")
+    cfg = registry.get("refined-heading", model=model, fps=20)
+    on = apply_variant(cfg, f"{head}={value}")
+    assert getattr(cfg, head) == 0 and getattr(on, head) == expected
+    assert getattr(apply_variant(on, f"{head}=off"), head) == 0
+    for b in bad:
+        with pytest.raises(ConfigError, match=match):
+            apply_variant(cfg, f"{head}={b}")
+    with pytest.raises(ConfigError, match=refused_match):
+        apply_variant(registry.get(refused_by, model=model, fps=20), f"{head}={value}")
+
+
+def test_the_keypoint_proposals_variant(short_sequence: Path, keypoint_sequence: Path):
+    """``keypoint_proposals=F``: parsed and checked; on a sequence with keypoints the fit from the prediction runs
+    (without the fit after the searches) and changes the track; without keypoints, pose for pose as without it."""
+    _check_variant("keypoint_proposals", "0.25", 0.25, ("1", "-0.1", "many"), "keypoint_proposals=F", "sppso",
+                   "keypoint_proposals=F")
+    plain = _track(keypoint_sequence, "refined-heading", "keypoint_ik=off", ik_ran=False)
+    proposed = _track(keypoint_sequence, "refined-heading", "keypoint_ik=off+keypoint_proposals=0.25", ik_ran=True)
+    assert not np.array_equal(plain, proposed)
+    np.testing.assert_array_equal(_track(short_sequence, "refined-heading", "keypoint_proposals=0.25", ik_ran=False),
+                                  _track(short_sequence, "refined-heading"))
+
+
+def test_the_keypoint_fit_polished(keypoint_sequence: Path):
+    """``keypoint_ik_polish=B``: parsed and checked (it needs the keypoint fit); where the fit scores lower than the
+    frame's pose, at most B more evaluations search from it, and a polished fit that scores no higher is not kept."""
+    from swarmpose.track.tracker import TrackConfig, prepare_track, run_tracker
+
+    _check_variant("keypoint_ik_polish", "150", 150, ("-1", "1.5", "on"), "keypoint_ik_polish=B", "refined-limbs",
+                   "add keypoint_ik=on first")
+
+    def run(variant: str):
+        c = TrackConfig(algo="refined-heading", optim_variant=variant, max_frames=3, downsample=2)
+        return run_tracker(prepare_track(keypoint_sequence, c), 0)
+
+    plain, polished = run(""), run("keypoint_ik_polish=150")
+    extra = np.asarray(polished.evaluations) - np.asarray(plain.evaluations)
+    assert extra.sum() > 0 and extra.max() <= 150  # it ran, within its budget per frame
+    # on these frames no polished fit beats the searched pose, so the poses are the searches' own
+    np.testing.assert_array_equal(plain.params, polished.params)
+
+
 def test_the_detectors_elbows_are_measured_on_the_sequence(short_sequence: Path, tmp_path: Path):
     """``keypoint_elbow=auto``: keypoints whose elbows lie at 0.85 of the upper arm give about 0.85 (recorded with
     the run's errors); a sequence without keypoints tracks as without the option."""

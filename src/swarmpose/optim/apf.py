@@ -92,6 +92,31 @@ class ParticleSet:
         object.__setattr__(self, "particles", p)
         object.__setattr__(self, "weights", w)
 
+    def with_proposal(self, x: np.ndarray, share: float) -> ParticleSet:
+        """The set with ``round(share * N)`` (at least one) of its lowest-weight particles replaced by ``x``,
+        which together weigh ``share``; the others keep their proportions in the rest. A proposal from
+        outside the filter (a detector's pose, say) that the next resampling draws in about ``share * N``
+        centres; ``share`` 0 returns the set as it is."""
+        share = float(share)
+        if not 0.0 <= share < 1.0:
+            raise ConfigError(f"a proposal's share of the weight must lie in [0, 1), got {share}")
+        if share == 0.0:
+            return self
+        x = np.asarray(x, dtype=np.float64)
+        n = len(self.weights)
+        if x.shape != (self.particles.shape[1],):
+            raise ShapeError(f"a proposal of shape ({self.particles.shape[1]},) expected, got {x.shape}")
+        k = min(n - 1, max(1, int(round(share * n))))
+        low = np.argsort(self.weights, kind="stable")[:k]
+        particles = np.array(self.particles)
+        particles[low] = x
+        weights = np.array(self.weights)
+        weights[low] = 0.0
+        rest = weights.sum()
+        weights = weights * ((1.0 - share) / rest) if rest > 0 else np.full(n, (1.0 - share) / (n - k))
+        weights[low] = share / k
+        return ParticleSet(particles, weights)
+
 
 class AnnealedParticleFilter(Optimizer):
     """Annealed particle filter over ``n_layers`` layers ([DR05] sec. 3 and 6).

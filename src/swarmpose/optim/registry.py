@@ -392,6 +392,14 @@ class RefinedConfig(OptimizerConfig):
     keypoint_ik : bool
         The tracker fits each frame's pose to the triangulated keypoints from where the search left it
         (:func:`swarmpose.track.start.keypoint_ik`), where the sequence has keypoints; read by the tracker only.
+    keypoint_ik_polish : int
+        Pattern-search evaluations (its first step the refinement's) from the keypoint fit where the fit scores no
+        higher than the frame's pose; the polished fit is kept when it scores higher. 0: the fit is kept or not as
+        it is. Read by the tracker only, with ``keypoint_ik``.
+    keypoint_proposals : float
+        Share of the carried particle set's weight the tracker gives, before each frame's search, to the pose
+        fitted to the frame's triangulated keypoints from the prediction (:meth:`ParticleSet.with_proposal`),
+        where the sequence has keypoints and a set is carried; 0: none. Read by the tracker only.
     silhouette_height : bool
         The tracker moves the predicted root height by the rise of the silhouettes' triangulated centre since
         the frame before (an image fitness's observation); read by the tracker only.
@@ -417,6 +425,8 @@ class RefinedConfig(OptimizerConfig):
     refine_options: Mapping[str, Any] = field(default_factory=dict)
     recovery: Mapping[str, Any] = field(default_factory=dict)
     keypoint_ik: bool = False
+    keypoint_ik_polish: int = 0
+    keypoint_proposals: float = 0.0
     silhouette_height: bool = False
     turn_search: Mapping[str, Any] = field(default_factory=dict)
     heading_speed: float | None = None
@@ -431,6 +441,12 @@ class RefinedConfig(OptimizerConfig):
             raise ConfigError(f"{self.name}: refine_budget must be a whole number >= 0")
         if not self.refine_step > 0:
             raise ConfigError(f"{self.name}: refine_step must be > 0")
+        if (isinstance(self.keypoint_ik_polish, bool) or int(self.keypoint_ik_polish) != self.keypoint_ik_polish
+                or self.keypoint_ik_polish < 0):
+            raise ConfigError(f"{self.name}: keypoint_ik_polish must be a whole number of evaluations >= 0")
+        if not 0.0 <= self.keypoint_proposals < 1.0:
+            raise ConfigError(f"{self.name}: keypoint_proposals must be a share of the weight in [0, 1), got "
+                              f"{self.keypoint_proposals}")
         object.__setattr__(self, "refine_options", frozen_options(self.refine_options))
         object.__setattr__(self, "recovery", frozen_options(self.recovery))
         object.__setattr__(self, "turn_search", frozen_options(self.turn_search))

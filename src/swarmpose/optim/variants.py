@@ -40,6 +40,10 @@ def apply_variant(config: Any, variant: str) -> Any:
       frame's triangulated keypoints (sequences with keypoints); ``heading_speed=D``: the part of the heading's last step beyond D degrees
       carried on into the prediction; ``keypoint_ik=on``: each frame's pose fitted to the triangulated
       keypoints from where the searches left it, kept when it scores higher (sequences with keypoints);
+      ``keypoint_ik_polish=B``: where that fit scores no higher than the frame's pose, B pattern-search evaluations
+      from it, kept when they score higher (``off``: 0; needs ``keypoint_ik``);
+      ``keypoint_proposals=F``: before each frame's search, the pose fitted to the frame's triangulated keypoints
+      from the prediction takes share F of the carried particle set's weight (``off``: 0; sequences with keypoints);
       ``coupled_limits=on``: the hard priors also reject the body model's coupled limits (the shoulders' second
       branch of angles; on in the default tracker, ``off`` turns them off); several variants are joined by ``+``
       (``apf=200x5+refine=0``).
@@ -73,6 +77,24 @@ def apply_variant(config: Any, variant: str) -> Any:
             raise ConfigError(f"variant {variant!r}: expected heading_speed=D (degrees per frame, >= 0) or "
                               f"heading_speed=off on a refined configuration ({config.name!r})")
         return dataclasses.replace(config, heading_speed=d)
+    if head == "keypoint_ik_polish":
+        value = variant.partition("=")[2].strip()
+        if not getattr(config, "keypoint_ik", False) or not (value == "off" or value.isdigit()):
+            raise ConfigError(f"variant {variant!r}: expected keypoint_ik_polish=B (pattern-search evaluations, a "
+                              f"whole number >= 0) or keypoint_ik_polish=off on a configuration with the keypoint fit "
+                              f"({config.name!r}: add keypoint_ik=on first)")
+        return dataclasses.replace(config, keypoint_ik_polish=0 if value == "off" else int(value))
+    if head == "keypoint_proposals":
+        value = variant.partition("=")[2].strip()
+        try:
+            f = 0.0 if value == "off" else float(value)
+        except ValueError:
+            f = float("nan")
+        if not hasattr(config, "keypoint_proposals") or not 0.0 <= f < 1.0:
+            raise ConfigError(f"variant {variant!r}: expected keypoint_proposals=F (a share of the carried particle "
+                              f"set's weight, 0 <= F < 1) or keypoint_proposals=off on a refined configuration "
+                              f"({config.name!r})")
+        return dataclasses.replace(config, keypoint_proposals=f)
     if head == "turn_keypoints":
         value = variant.partition("=")[2].strip()
         if not getattr(config, "turn_search", None) or value not in ("on", "off"):

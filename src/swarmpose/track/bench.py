@@ -28,7 +28,8 @@ PART_HELP = {
     "fitness": "fitness kernels (kinematics, projection, silhouette, edges; the distance maps)",
     "priors": "hard priors: joint limits and limb collisions (where not inside a PSO's compiled moves)",
     "recovery": "loss detection and re-search, without fitness and priors",
-    "keypoint_ik": "the fit of each frame's pose to its triangulated keypoints (refined-keypoints)",
+    "keypoint_ik": "the fits of a frame's pose to its triangulated keypoints (after the searches; from the "
+                   "prediction with keypoint_proposals)",
     "writing": "results written per frame (progress files)",
 }
 

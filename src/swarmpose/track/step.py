@@ -2,7 +2,9 @@
 
 :class:`FrameSearch` is what the tracker does on each frame once the frame's observation is bound to the
 fitness: the motion model's prediction (and the carried particle set moved with it; with ``silhouette_height`` the
-root's height moved by the rise of the silhouettes' triangulated centre since the frame before), the optimiser's search
+root's height moved by the rise of the silhouettes' triangulated centre since the frame before; with
+``keypoint_proposals`` a share of the carried set's weight given to the pose fitted to the frame's triangulated
+keypoints from the prediction), the optimiser's search
 (on the first frame of a start from the silhouettes: a turn of headings, the best few searched, then more
 rounds from the best), the loss detection and re-search of :mod:`swarmpose.track.recovery`, and the per-frame
 keypoint IK of the configurations that ask for it.
@@ -28,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from swarmpose.joints import JOINT_INDEX
+from swarmpose.optim.refine import PatternSearch
 from swarmpose.track.recovery import LIMBS
 from swarmpose.track.start import (
     START_ROUNDS,
@@ -92,6 +95,9 @@ class FrameSearch:
     silhouette_height: bool = False
     turn: Any = None  # a swarmpose.track.turn.TurnSearch
     heading_speed: float | None = None  # degrees per frame (the algorithm's heading_speed)
+    keypoint_ik: bool = True  # with kp_joints: each frame's pose fitted to them after the searches
+    keypoint_ik_polish: int = 0  # pattern-search evaluations from a keypoint fit that scores no higher
+    keypoint_proposals: float = 0.0  # with kp_joints: the carried set's share given to the fit from the prediction
     _centre: tuple[int, np.ndarray | None] | None = field(default=None, init=False, repr=False)
 
     def note_centre(self, i: int, features: Any) -> tuple[int, np.ndarray | None] | None:
@@ -146,6 +152,11 @@ class FrameSearch:
             if carry is not None and np.any(step):
                 carry = optim.ParticleSet(self.motion.move_particles(carry.particles, step, self.constraint),
                                           carry.weights)
+        if self.keypoint_proposals > 0 and self.kp_joints is not None and carry is not None:
+            with timer.part("keypoint_ik"):
+                x_kp = keypoint_ik(model, fill_gaps(self.kp_joints, i, reach=2), x_pred, self.constraint)
+            if x_kp is not None:
+                carry = carry.with_proposal(x_kp, self.keypoint_proposals)
         starts = [x_pred]
         evals = 0
         searching = first and self.search_start
@@ -198,12 +209,23 @@ class FrameSearch:
                 carry = recentre(carry, x, [model.group(LIMBS[limb][1]) for limb in rec.recovered],
                                  model.lower, model.upper)
             recovered = list(rec.recovered)
-        if self.kp_joints is not None:
+        if self.keypoint_ik and self.kp_joints is not None:
             with timer.part("keypoint_ik"):
                 x_ik = keypoint_ik(model, fill_gaps(self.kp_joints, i, reach=2), x, self.constraint)
             if x_ik is not None:
-                ik_score = float(fitness.evaluate(x_ik[None], {**self.algo.refine_options, **extra})[0])
+                ik_options = {**self.algo.refine_options, **extra}
+                ik_score = float(fitness.evaluate(x_ik[None], ik_options)[0])
                 evals += 1
+                if self.keypoint_ik_polish and not ik_score > score:  # the fit's basin, searched from the fit
+                    with timer.part("recovery"):
+                        ps = PatternSearch(x_ik, self.algo.refine_step * np.asarray(self.algo.sigma, dtype=np.float64),
+                                           self.keypoint_ik_polish, lower=model.lower, upper=model.upper,
+                                           constraint=self.constraint)
+                        while not ps.done:
+                            ps.tell(fitness.evaluate(ps.ask(), ik_options))
+                    evals += ps.evaluations
+                    if ps.best.score > ik_score:
+                        x_ik, ik_score = np.array(ps.best.x, dtype=np.float64), float(ps.best.score)
                 if ik_score > score:
                     x, score = x_ik, ik_score
                     carry = recentre(carry, x, [np.arange(model.n_params)], model.lower, model.upper)

@@ -664,7 +664,9 @@ def run_tracker(
     backgrounds = seq.backgrounds() if cfg.fitness_kind in IMAGE_FITNESS else None
     keypoints = seq.marker_data.to_dense() if cfg.fitness_kind in IMAGE_FITNESS and has_keypoints(seq) else None
     kp_joints = None  # the tracked views' triangulated keypoints, for the configurations that fit them per frame
-    if getattr(algo, "keypoint_ik", False) and has_keypoints(seq):
+    fit_keypoints = bool(getattr(algo, "keypoint_ik", False))
+    proposals = float(getattr(algo, "keypoint_proposals", 0.0))
+    if (fit_keypoints or proposals > 0) and has_keypoints(seq):
         kp_joints = keypoint_joints(seq, setup.frame_indices, views=views)
     elbow = None  # keypoint_elbow=auto: the detector's elbows on the model's upper arms, measured on this sequence
     if extra_options.get("keypoint_elbow") == "auto":
@@ -701,7 +703,8 @@ def run_tracker(
                          and cfg.fitness_kind in IMAGE_FITNESS,
                          turn=TurnSearch.from_settings(getattr(algo, "turn_search", {}))
                          if cfg.fitness_kind in IMAGE_FITNESS else None,
-                         heading_speed=getattr(algo, "heading_speed", None))
+                         heading_speed=getattr(algo, "heading_speed", None), keypoint_ik=fit_keypoints,
+                         keypoint_ik_polish=int(getattr(algo, "keypoint_ik_polish", 0)), keypoint_proposals=proposals)
     if search.silhouette_height and start_k > 0:  # a resumed run: the rise into its first frame as in one run
         search.note_centre(start_k - 1, load(start_k - 1))
     try:
