@@ -81,6 +81,8 @@ def test_a_proposal_takes_its_share_of_the_carried_weight():
             carried.with_proposal(x, bad)
     with pytest.raises(ShapeError):
         carried.with_proposal(np.zeros(2), 0.25)
+    with pytest.raises(ShapeError, match="one particle"):
+        ParticleSet(np.zeros((1, d)), np.ones(1)).with_proposal(x, 0.25)
     # resampled as the next frame's centres: about 50 of 200 at the proposal (binomial sd 6.1; 4 sd margin)
     apf = AnnealedParticleFilter.start(np.zeros(d), np.full(d, 1e-9), n, 2, np.random.default_rng(5), carry=prop)
     near = np.all(np.abs(apf.ask() - x) < 1e-6, axis=1).sum()

@@ -93,10 +93,10 @@ class ParticleSet:
         object.__setattr__(self, "weights", w)
 
     def with_proposal(self, x: np.ndarray, share: float) -> ParticleSet:
-        """The set with ``round(share * N)`` (at least one) of its lowest-weight particles replaced by ``x``,
-        which together weigh ``share``; the others keep their proportions in the rest. A proposal from
-        outside the filter (a detector's pose, say) that the next resampling draws in about ``share * N``
-        centres; ``share`` 0 returns the set as it is."""
+        """The set with ``round(share * N)`` (at least one, at most ``N - 1``) of its lowest-weight particles
+        replaced by ``x``, which together weigh ``share``; the others keep their proportions in the rest. A
+        proposal from outside the filter (a detector's pose, say) that the next resampling draws in about
+        ``share * N`` centres; ``share`` 0 returns the set as it is."""
         share = float(share)
         if not 0.0 <= share < 1.0:
             raise ConfigError(f"a proposal's share of the weight must lie in [0, 1), got {share}")
@@ -106,6 +106,8 @@ class ParticleSet:
         n = len(self.weights)
         if x.shape != (self.particles.shape[1],):
             raise ShapeError(f"a proposal of shape ({self.particles.shape[1]},) expected, got {x.shape}")
+        if n < 2:
+            raise ShapeError("a set of one particle has no room for a proposal beside it")
         k = min(n - 1, max(1, int(round(share * n))))
         low = np.argsort(self.weights, kind="stable")[:k]
         particles = np.array(self.particles)
