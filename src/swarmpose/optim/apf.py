@@ -113,9 +113,8 @@ class ParticleSet:
         particles = np.array(self.particles)
         particles[low] = x
         weights = np.array(self.weights)
-        weights[low] = 0.0
-        rest = weights.sum()
-        weights = weights * ((1.0 - share) / rest) if rest > 0 else np.full(n, (1.0 - share) / (n - k))
+        weights[low] = 0.0  # the highest weight (> 0) is never among the k <= N - 1 lowest: the rest is > 0
+        weights *= (1.0 - share) / weights.sum()
         weights[low] = share / k
         return ParticleSet(particles, weights)
 

@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from swarmpose.joints import JOINT_INDEX
+from swarmpose.optim.base import optimize
 from swarmpose.optim.refine import PatternSearch
 from swarmpose.track.recovery import LIMBS
 from swarmpose.track.start import (
@@ -221,11 +222,10 @@ class FrameSearch:
                         ps = PatternSearch(x_ik, self.algo.refine_step * np.asarray(self.algo.sigma, dtype=np.float64),
                                            self.keypoint_ik_polish, lower=model.lower, upper=model.upper,
                                            constraint=self.constraint)
-                        while not ps.done:
-                            ps.tell(fitness.evaluate(ps.ask(), ik_options))
-                    evals += ps.evaluations
-                    if ps.best.score > ik_score:
-                        x_ik, ik_score = np.array(ps.best.x, dtype=np.float64), float(ps.best.score)
+                        polished = optimize(ps, lambda poses: fitness.evaluate(poses, ik_options))
+                    evals += polished.evaluations
+                    if polished.score > ik_score:
+                        x_ik, ik_score = np.array(polished.x, dtype=np.float64), float(polished.score)
                 if ik_score > score:
                     x, score = x_ik, ik_score
                     carry = recentre(carry, x, [np.arange(model.n_params)], model.lower, model.upper)
