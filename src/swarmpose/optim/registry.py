@@ -417,6 +417,12 @@ class RefinedConfig(OptimizerConfig):
         The tracker's hard priors also reject the body model's coupled limits (``HardPriors(coupled_limits=True)``:
         the shoulders' second branch of angles, the upper arm hanging twisted beyond its rotation limits); read by
         the tracker only.
+    members : int
+        Searches of every frame side by side, each with its own generator, particle set and track, the frame's pose
+        their consensus (:mod:`swarmpose.track.ensemble`); 1: one search. Read by the tracker only.
+    members_reset : float
+        Millimetres: a member with a joint farther than this from the consensus goes on from the consensus
+        (``inf``: never). Read by the tracker only, with ``members > 1``.
     """
 
     base: OptimizerConfig | None = None
@@ -432,6 +438,8 @@ class RefinedConfig(OptimizerConfig):
     heading_speed: float | None = None
     frame_options: Mapping[str, Any] = field(default_factory=dict)
     coupled_limits: bool = False
+    members: int = 1
+    members_reset: float = 80.0
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -447,6 +455,12 @@ class RefinedConfig(OptimizerConfig):
         if not 0.0 <= self.keypoint_proposals < 1.0:
             raise ConfigError(f"{self.name}: keypoint_proposals must be a share of the weight in [0, 1), got "
                               f"{self.keypoint_proposals}")
+        if isinstance(self.members, bool) or int(self.members) != self.members or not (self.members == 1
+                                                                                         or self.members >= 3):
+            raise ConfigError(f"{self.name}: members must be 1 or a whole number >= 3 (the median of two poses is "
+                              f"their mean), got {self.members}")
+        if not self.members_reset > 0:
+            raise ConfigError(f"{self.name}: members_reset must be > 0 mm (inf: never), got {self.members_reset}")
         object.__setattr__(self, "refine_options", frozen_options(self.refine_options))
         object.__setattr__(self, "recovery", frozen_options(self.recovery))
         object.__setattr__(self, "turn_search", frozen_options(self.turn_search))
@@ -454,7 +468,8 @@ class RefinedConfig(OptimizerConfig):
     @property
     def evals_per_frame(self) -> int:
         """The search's and the refinement's evaluations, the heading's search, and the limbs' searches when every
-        limb is searched on every frame (a lost limb's search, only when one is lost, is not counted)."""
+        limb is searched on every frame (a lost limb's search, only when one is lost, is not counted); with members,
+        each member's and the consensus's score."""
         n = self.base.evals_per_frame + int(self.refine_budget)
         r = self.recovery
         if r and r.get("threshold", 0.05) < 0:
@@ -465,7 +480,7 @@ class RefinedConfig(OptimizerConfig):
         if t:
             n += (1 + len(t["whole"]) + len(t["pelvis"]) + int(t["n_best"]) * int(t["budget"])
                   + (2 if t.get("guard") else 0) + (2 if t.get("keypoints") else 0))
-        return n
+        return n if self.members == 1 else int(self.members) * n + 1
 
     def start(self, x0: Any, rng: np.random.Generator, constraint: Constraint | None = None,
               carry: Any = None) -> Optimizer:

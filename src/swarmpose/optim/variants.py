@@ -44,6 +44,9 @@ def apply_variant(config: Any, variant: str) -> Any:
       from it, kept when they score higher (``off``: 0; needs ``keypoint_ik``);
       ``keypoint_proposals=F``: before each frame's search, the pose fitted to the frame's triangulated keypoints
       from the prediction takes share F of the carried particle set's weight (``off``: 0; sequences with keypoints);
+      ``members=K``: K searches of every frame side by side, the frame's pose their consensus (K >= 3; 1: one
+      search; K times the evaluations); ``members_reset=M``: a member with a joint more than M mm from the consensus
+      goes on from it (default 80; ``off``: never);
       ``coupled_limits=on``: the hard priors also reject the body model's coupled limits (the shoulders' second
       branch of angles; on in the default tracker, ``off`` turns them off); several variants are joined by ``+``
       (``apf=200x5+refine=0``).
@@ -95,6 +98,21 @@ def apply_variant(config: Any, variant: str) -> Any:
                               f"set's weight, 0 <= F < 1) or keypoint_proposals=off on a refined configuration "
                               f"({config.name!r})")
         return dataclasses.replace(config, keypoint_proposals=f)
+    if head in ("members", "members_reset"):
+        value = variant.partition("=")[2].strip()
+        if head == "members":
+            ok = value.isdigit() and (int(value) == 1 or int(value) >= 3)
+            form = "members=K (searches side by side: 1, or a whole number >= 3)"
+        else:
+            try:
+                mm = math.inf if value == "off" else float(value)
+            except ValueError:
+                mm = float("nan")
+            ok = mm > 0
+            form = "members_reset=M (mm, > 0) or members_reset=off"
+        if not hasattr(config, "members") or not ok:
+            raise ConfigError(f"variant {variant!r}: expected {form} on a refined configuration ({config.name!r})")
+        return dataclasses.replace(config, **({"members": int(value)} if head == "members" else {"members_reset": mm}))
     if head == "turn_keypoints":
         value = variant.partition("=")[2].strip()
         if not getattr(config, "turn_search", None) or value not in ("on", "off"):

@@ -30,6 +30,7 @@ PART_HELP = {
     "recovery": "loss detection and re-search, without fitness and priors",
     "keypoint_ik": "the fits of a frame's pose to its triangulated keypoints (after the searches; from the "
                    "prediction with keypoint_proposals)",
+    "consensus": "a run with members: their poses fused into the frame's (the fit to their joints' median)",
     "writing": "results written per frame (progress files)",
 }
 

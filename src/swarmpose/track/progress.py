@@ -7,7 +7,8 @@ Two files in the run's folder:
   system's file cache when ``save`` returns, so a crash of the process loses nothing; the file is not mapped,
   so a long recording's rows do not stay in the process's memory);
 * ``progress.npz`` -- the small state the next frame needs (frames done, last estimate, the generator's
-  state, the carried particle set), replaced atomically after the row is on disk.
+  state, the carried particle set, and an ensemble's members' state, ``extra_*``), replaced atomically after
+  the row is on disk.
 
 A crash between the two leaves a row that ``progress.npz`` does not count yet: the resume tracks that frame
 again and overwrites it, so a resumed run gives exactly the uninterrupted result. ``progress.npz`` files of
@@ -18,7 +19,8 @@ from __future__ import annotations
 
 import json
 import os
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -31,6 +33,8 @@ __all__ = ["ProgressState", "RunProgress"]
 
 STATE_FILE = "progress.npz"
 FRAMES_FILE = "progress_frames.npy"
+#: The prefix of the extra state's arrays in ``progress.npz``.
+EXTRA = "extra_"
 
 
 @dataclass
@@ -46,6 +50,7 @@ class ProgressState:
     x_prev: np.ndarray
     rng_state: dict[str, Any]
     carry: tuple[np.ndarray, np.ndarray] | None
+    extra: dict[str, np.ndarray] = field(default_factory=dict)
 
 
 def _dtype(n_params: int, n_limbs: int) -> np.dtype:
@@ -88,6 +93,7 @@ class RunProgress:
             carry = (z["carry_x"].copy(), z["carry_w"].copy()) if "carry_x" in z else None
             rng_state = json.loads(str(z["rng_state"]))
             x_prev = z["x_prev"].copy()
+            extra = {k[len(EXTRA):]: v.copy() for k, v in z.items() if k.startswith(EXTRA)}
             if "params" in z:  # the earlier layout: every frame's arrays in progress.npz
                 rows = np.zeros(self.shape, self.dtype)
                 if z["params"].shape != (self.shape[0], self.dtype["params"].shape[0]):
@@ -104,7 +110,7 @@ class RunProgress:
         r = np.array(rows[:done])
         return ProgressState(done=done, params=r["params"], scores=r["score"], evaluations=r["evaluations"],
                              seconds=r["seconds"], recovered=r["recovered"], x_prev=x_prev, rng_state=rng_state,
-                             carry=carry)
+                             carry=carry, extra=extra)
 
     def _checked(self) -> np.memmap:
         """The frames file, mapped for reading, after checking its row type and length."""
@@ -139,14 +145,16 @@ class RunProgress:
 
     def save(self, i: int, *, params: np.ndarray, score: float, evaluations: int, seconds: float,
              recovered: np.ndarray, x_prev: np.ndarray, rng_state: dict[str, Any],
-             carry: tuple[np.ndarray, np.ndarray] | None) -> None:
-        """Frame ``i`` done: its row, then the state that counts it."""
+             carry: tuple[np.ndarray, np.ndarray] | None, extra: Mapping[str, np.ndarray] | None = None) -> None:
+        """Frame ``i`` done: its row, then the state that counts it (``extra``: more arrays of that state, read
+        back as :attr:`ProgressState.extra`)."""
         if self._fd is None:
             raise RuntimeError("RunProgress.start() first")
         self._write(i, np.array([(params, score, evaluations, seconds, recovered)], self.dtype))
-        extra = {} if carry is None else {"carry_x": carry[0], "carry_w": carry[1]}
+        arrays = {} if carry is None else {"carry_x": carry[0], "carry_w": carry[1]}
+        arrays.update({EXTRA + k: np.asarray(v) for k, v in (extra or {}).items()})
         tmp = self.state_file.with_name(self.state_file.name + ".tmp.npz")
-        np.savez(tmp, done=i + 1, x_prev=x_prev, rng_state=np.array(json.dumps(rng_state)), **extra)
+        np.savez(tmp, done=i + 1, x_prev=x_prev, rng_state=np.array(json.dumps(rng_state)), **arrays)
         os.replace(tmp, self.state_file)
 
     def close(self) -> None:

@@ -10,7 +10,7 @@ from typing import Any
 __all__ = ["PARTS", "PartTimer", "TimedFitness"]
 
 #: The parts of a frame, in loop order.
-PARTS = ("features", "motion", "optimiser", "fitness", "priors", "recovery", "keypoint_ik", "writing")
+PARTS = ("features", "motion", "optimiser", "fitness", "priors", "recovery", "keypoint_ik", "consensus", "writing")
 
 
 class PartTimer:

@@ -45,6 +45,7 @@ from swarmpose.errors import ConfigError, DataError, FormatError
 from swarmpose.io.files import load_npz, read_json_object, save_npz
 from swarmpose.metrics import joint_acceleration, track_errors, valid_frames
 from swarmpose.track.constraint import PriorsConstraint
+from swarmpose.track.ensemble import Ensemble
 from swarmpose.track.feature_store import FeatureStore
 from swarmpose.track.motion import parse_motion
 from swarmpose.track.observation import IMAGE_FITNESS, MARKER_FITNESS, Prefetcher, frame_observation
@@ -705,9 +706,20 @@ def run_tracker(
                          if cfg.fitness_kind in IMAGE_FITNESS else None,
                          heading_speed=getattr(algo, "heading_speed", None), keypoint_ik=fit_keypoints,
                          keypoint_ik_polish=int(getattr(algo, "keypoint_ik_polish", 0)), keypoint_proposals=proposals)
-    if search.silhouette_height and start_k > 0:  # a resumed run: the rise into its first frame as in one run
-        search.note_centre(start_k - 1, load(start_k - 1))
+    ensemble = None
+    if int(getattr(algo, "members", 1)) > 1:  # members side by side; the first uses the run's generator
+        children = run_seed(cfg.seed, run).spawn(int(algo.members))  # child 0 is the backward pass's
+        ensemble = Ensemble(search, [rng] + [np.random.default_rng(c) for c in children[1:]], x_prev,
+                            float(algo.members_reset))
     try:
+        if ensemble is not None and state is not None and start_k > 0:
+            try:
+                ensemble.restore(state.extra)
+            except (KeyError, ValueError) as exc:
+                raise FormatError(f"its members' state does not fit this run ({exc}); delete it to track run "
+                                  f"{run} afresh", path=store.state_file) from None
+        if search.silhouette_height and start_k > 0:  # a resumed run: the rise into its first frame as in one run
+            (ensemble or search).note_centre(start_k - 1, load(start_k - 1))
         for i in range(start_k, T):
             if stop_after is not None and i >= stop_after:
                 break
@@ -720,7 +732,10 @@ def run_tracker(
                 tw = time.perf_counter()  # so that frames/s is the tracking speed; the score is not used
                 untimed_fitness.evaluate(x_prev[None])
                 t0 += time.perf_counter() - tw
-            res = search.step(i, params[:i] if i >= 2 else x_prev[None], x_prev, carry, rng, first=i == 0)
+            if ensemble is None:
+                res = search.step(i, params[:i] if i >= 2 else x_prev[None], x_prev, carry, rng, first=i == 0)
+            else:
+                res = ensemble.step(i, first=i == 0)
             x_prev, score, n_evals, carry = res.x, res.score, res.evaluations, res.carry
             for limb in res.recovered:
                 recovered[i, LIMB_NAMES.index(limb)] = True
@@ -730,7 +745,8 @@ def run_tracker(
                 with timer.part("writing"):
                     store.save(i, params=params[i], score=scores[i], evaluations=evals[i], seconds=seconds[i],
                                recovered=recovered[i], x_prev=x_prev, rng_state=rng.bit_generator.state,
-                               carry=None if carry is None else (carry.particles, carry.weights))
+                               carry=None if carry is None else (carry.particles, carry.weights),
+                               extra=None if ensemble is None else ensemble.state())
             if progress is not None:
                 progress(i + 1, setup.progress_frames)
         passes = None
@@ -784,6 +800,8 @@ def run_tracker(
                                                    if setup.has_ground_truth else None)}
         if elbow is not None:
             result.errors["keypoint_elbow"] = elbow
+        if ensemble is not None:
+            result.errors["member_resets"] = ensemble.resets.tolist()
         if passes is not None and "backward_kept" in passes:
             result.errors["backward_kept"] = int(passes["backward_kept"].sum())
             result.errors["backward_mixed"] = int(passes["backward_mixed"].sum())
