@@ -68,7 +68,7 @@ class Ensemble:
         model = search.model
         poses, evals, recovered = [], 0, set()
         for m in self.members:
-            history = m.last if i >= 2 else m.last[-1:]  # as one run: velocity from the second frame on
+            history = m.last if i >= 2 else m.last[-1:]  # as one run: a velocity from position 2 on
             r = m.search.step(i, history, m.last[-1], m.carry, m.rng, first=first)
             m.last = np.vstack([m.last[-1:], r.x[None]])
             m.carry = r.carry

@@ -607,7 +607,10 @@ def run_tracker(
     run has computed are read from it, the others computed and kept there (the results are the same); None:
     every frame computed.
     With ``config.backward`` the whole forward pass is followed by :func:`swarmpose.track.step.backward_pass`
-    (its own generator, spawned from the run's seed); ``RunResult.passes`` keeps the forward pass.
+    (its own generator, spawned from the run's seed); ``RunResult.passes`` keeps the forward pass. A configuration
+    with ``members > 1`` tracks the forward pass with an :class:`~swarmpose.track.ensemble.Ensemble` (the first
+    member on the run's generator, the others on generators spawned from the run's seed after the backward pass's);
+    the backward pass is one search.
     """
     from swarmpose import optim
     from swarmpose.features import parse_feature_options
