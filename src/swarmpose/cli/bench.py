@@ -137,8 +137,9 @@ def track(
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object instead of a table."),
 ) -> None:
     """Track one run in this process and show where its time goes, part by part of the frame loop
-    (features, motion model, optimiser, fitness, hard priors, recovery, results writing), and its memory: the
-    peak, and how fast it grows after the first quarter of the run (`--json`: samples along the run)."""
+    (features, motion model, optimiser, fitness, hard priors, recovery, the keypoint fits, a run's members'
+    consensus, results writing), and its memory: the peak, and how fast it grows after the first quarter of the
+    run (`--json`: samples along the run)."""
     from swarmpose.cli.demo import DEFAULT_CLIP
     from swarmpose.track.bench import bench_track
     from swarmpose.track.runner import resolve_sequence
