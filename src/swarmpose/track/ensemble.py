@@ -35,8 +35,8 @@ __all__ = ["Ensemble", "Member"]
 
 @dataclasses.dataclass
 class Member:
-    """One member: its frame search (a copy of the run's: its own silhouette-height memory), generator, last
-    poses ``(k, D)`` (k <= 2, oldest first) and carried particle set."""
+    """One member: its frame search (a copy of the run's: its own silhouette-height memory), generator, last two
+    poses ``(2, D)`` (oldest first; both the start pose before the first frame) and carried particle set."""
 
     search: FrameSearch
     rng: np.random.Generator
@@ -56,8 +56,8 @@ class Ensemble:
         x0 = np.asarray(x0, dtype=np.float64)
         self.search = search
         self.reset = float(reset)
-        self.members = [Member(search=search if m == 0 else dataclasses.replace(search), rng=rng, last=x0[None].copy())
-                        for m, rng in enumerate(rngs)]
+        self.members = [Member(search=search if m == 0 else dataclasses.replace(search), rng=rng,
+                               last=np.stack([x0, x0])) for m, rng in enumerate(rngs)]
         self.resets = np.zeros(len(self.members), dtype=np.int64)  # per member: the frames it went on from x*
 
     def step(self, i: int, first: bool = False) -> StepResult:
@@ -94,13 +94,9 @@ class Ensemble:
             m.search.note_centre(i, features)
 
     def state(self) -> dict[str, np.ndarray]:
-        """The members' state as arrays (a run's progress file keeps them): last poses ``(K, 2, D)`` with how
-        many rows are real, generators' states (JSON), particle sets where carried."""
-        K, D = len(self.members), self.members[0].last.shape[1]
-        last = np.full((K, 2, D), np.nan)
-        for k, m in enumerate(self.members):
-            last[k, 2 - len(m.last):] = m.last
-        out = {"last": last, "rows": np.array([len(m.last) for m in self.members]), "resets": self.resets.copy(),
+        """The members' state as arrays (a run's progress file keeps them): last poses ``(K, 2, D)``, reset counts,
+        generators' states (JSON), particle sets where carried."""
+        out = {"last": np.stack([m.last for m in self.members]), "resets": self.resets.copy(),
                "rng": np.array(json.dumps([m.rng.bit_generator.state for m in self.members]))}
         if all(m.carry is not None for m in self.members):
             out["carry_x"] = np.stack([m.carry.particles for m in self.members])
@@ -112,13 +108,13 @@ class Ensemble:
         from swarmpose import optim
 
         K, D = len(self.members), self.members[0].last.shape[1]
-        last, rows = np.asarray(state["last"], dtype=np.float64), np.asarray(state["rows"])
+        last = np.asarray(state["last"], dtype=np.float64)
         rngs = json.loads(str(state["rng"]))
-        if last.shape != (K, 2, D) or rows.shape != (K,) or len(rngs) != K or not set(rows.tolist()) <= {1, 2}:
+        if last.shape != (K, 2, D) or len(rngs) != K:
             raise ValueError(f"the saved members ({last.shape[0]}) do not fit this run's {K} of {D} parameters")
         self.resets = np.asarray(state["resets"], dtype=np.int64).copy()
         for k, m in enumerate(self.members):
-            m.last = last[k, 2 - int(rows[k]):].copy()
+            m.last = last[k].copy()
             m.rng.bit_generator.state = rngs[k]
             m.carry = (optim.ParticleSet(np.array(state["carry_x"][k]), np.array(state["carry_w"][k]))
                        if "carry_x" in state else None)
