@@ -624,6 +624,26 @@ def test_bench_track_takes_the_downsampling(short_sequence_cli: Path):
     assert bad.exit_code != 0 and "downsample" in bad.output
 
 
+def test_bench_track_times_the_backward_pass(short_sequence_cli: Path):
+    """``--backward``: the run makes its offline second pass, so each frame costs its two searches (more
+    evaluations and more time than forwards alone) and the track is the one ``track --backward`` gives."""
+    def bench(*extra: str) -> dict:
+        res = CliRunner().invoke(app, ["bench", "track", str(short_sequence_cli), "--algo", "sppso", "--max-frames",
+                                       "3", "--json", *extra])
+        assert res.exit_code == 0, res.output
+        return json.loads(res.stdout)
+
+    forwards, both = bench(), bench("--backward")
+    assert (forwards["backward"], both["backward"]) == (False, True)
+    assert forwards["frames"] == both["frames"] == 3
+    assert forwards["evals_per_frame"] == 1000 and both["evals_per_frame"] > 1000
+    assert both["parts"][0]["part"] == "features" and both["seconds"] > 0
+    assert [m["frame"] for m in both["memory"]][-1] == 5  # progress over both passes: 2 * 3 - 1 frames
+    table = CliRunner().invoke(app, ["bench", "track", str(short_sequence_cli), "--algo", "sppso", "--max-frames",
+                                     "2", "--backward"])
+    assert table.exit_code == 0 and "--backward" in table.output
+
+
 def test_memory_growth_fits_the_run_after_its_first_quarter():
     from swarmpose.track.bench import memory_growth
 

@@ -132,6 +132,9 @@ def track(
     repeat: int = typer.Option(1, min=1, help="Play the tracked frames this many times, every other pass "
                                               "backwards: a long recording, to see whether the cost per frame "
                                               "grows with it."),
+    backward: bool = typer.Option(False, "--backward", help="Time the offline pass as well, as `track --backward` "
+                                                            "runs it: each frame's time is its forward and its "
+                                                            "backward search together."),
     feature_cache_dir: str = typer.Option(DEFAULT_FEATURE_CACHE, "--feature-cache",
                                           help=FEATURE_CACHE_HELP + " Off: the time of a sequence's first run."),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object instead of a table."),
@@ -146,7 +149,7 @@ def track(
     from swarmpose.track.tracker import TrackConfig
 
     cfg = TrackConfig(algo=algo or DEFAULT_ALGO, fps=fps, seed=seed, max_frames=max_frames, optim_variant=variant,
-                      views=views, downsample=downsample)
+                      views=views, downsample=downsample, backward=backward)
     seq = resolve_sequence(source or str(DEFAULT_CLIP), progress=not json_out)
     res = bench_track(seq, cfg, repeat=repeat, feature_cache=feature_cache(feature_cache_dir))
     if json_out:
@@ -154,7 +157,8 @@ def track(
         return
     from rich.table import Table
 
-    table = Table(title=f"{res['algo']}{' --variant ' + res['variant'] if res['variant'] else ''} at "
+    table = Table(title=f"{res['algo']}{' --variant ' + res['variant'] if res['variant'] else ''}"
+                        f"{' --backward' if res['backward'] else ''} at "
                         f"{res['fps']:g} fps"
                         f"{', downsampled ' + str(res['downsample']) + 'x' if res['downsample'] > 1 else ''}: "
                         f"{res['frames']} frames, "

@@ -97,7 +97,9 @@ def bench_track(sequence: str | Path, config: TrackConfig, *, run: int = 0, repe
                 feature_cache: str | Path | None = None) -> dict[str, Any]:
     """Track one run of ``sequence`` (in this process, into a temporary folder) and time it by part.
 
-    ``repeat``: play the tracked frames that many times, forwards and backwards (:func:`repeated`).
+    ``repeat``: play the tracked frames that many times, forwards and backwards (:func:`repeated`). With
+    ``config.backward`` the run makes its offline second pass as ``track --backward`` does, and a frame's time is
+    its two searches' together.
     Returns ``{"frames", "seconds", "frames_per_s", "parts": [{"part", "seconds", "ms_per_frame", "share"}],
     "d_mean_mm", "evals_per_frame", "peak_rss_mb", "memory", ...}``; the first frame's kernel compilation is not
     counted (as in ``track``). ``memory``: up to :data:`MEMORY_SAMPLES` samples of :func:`memory_now` along the run
@@ -109,7 +111,7 @@ def bench_track(sequence: str | Path, config: TrackConfig, *, run: int = 0, repe
     with tempfile.TemporaryDirectory(prefix="swarmpose-bench-") as tmp:
         setup = repeated(prepare_track(sequence, config, Path(tmp)), repeat)
         t_setup = time.perf_counter() - t0
-        every = max(1, len(setup.frame_indices) // MEMORY_SAMPLES)
+        every = max(1, setup.progress_frames // MEMORY_SAMPLES)  # with the backward pass: both passes' frames
 
         def sample(done: int, total: int) -> None:
             if done % every == 0 or done == total:
@@ -136,6 +138,7 @@ def bench_track(sequence: str | Path, config: TrackConfig, *, run: int = 0, repe
         "fps": config.fps,
         "views": config.views or "all",
         "downsample": config.downsample,
+        "backward": bool(config.backward),
         "frames": frames,
         "repeat": int(repeat),
         "ms_per_frame_first_quarter": 1e3 * first_q,
