@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from swarmpose.errors import ConfigError
+from swarmpose.optim.base import optimize
 from swarmpose.optim.refine import BoxSearch, PatternSearch
 
 __all__ = ["LIMBS", "Recovery", "RecoveryResult"]
@@ -139,24 +140,25 @@ class Recovery:
             mask[limbs[limb][1]] = True
             search = BoxSearch(x, mask, model.lower, model.upper, rng, n_samples=self.n_samples,
                                n_rounds=self.n_rounds, constraint=constraint)
-            before = None
-            while not search.done:
-                poses = search.ask()
+            first: list[float] = []  # the box search's first pose is the limb as tracked
+
+            def score_of(poses: np.ndarray, first: list[float] = first) -> np.ndarray:
                 s = fitness.evaluate(poses, options)
-                if before is None:
-                    before = float(s[0]) if np.isfinite(s[0]) else -np.inf
-                search.tell(s)
-            result.evaluations += search.evaluations
-            cand, score = search.best.x, search.best.score
+                if not first:
+                    first.append(float(s[0]) if np.isfinite(s[0]) else -np.inf)
+                return s
+
+            found = optimize(search, score_of)
+            result.evaluations += found.evaluations
+            cand, score = found.x, found.score
             if self.refine_budget:
                 step = np.where(mask, 0.5 * np.asarray(sigma), 0.0)
                 ps = PatternSearch(cand, step, self.refine_budget, lower=model.lower, upper=model.upper,
                                    constraint=constraint)
-                while not ps.done:
-                    ps.tell(fitness.evaluate(ps.ask(), options))
-                result.evaluations += ps.evaluations
-                cand, score = ps.best.x, ps.best.score
-            keep = score > before + self.margin
+                polished = optimize(ps, lambda poses: fitness.evaluate(poses, options))
+                result.evaluations += polished.evaluations
+                cand, score = polished.x, polished.score
+            keep = score > first[0] + self.margin
             if keep and self.guard:
                 sil = fitness.evaluate(np.stack([x, cand]), {**(options or {}), "terms": self.guard})
                 result.evaluations += 2

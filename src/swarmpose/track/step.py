@@ -172,10 +172,9 @@ class FrameSearch:
             x_start = starts.pop(0)
             with timer.part("optimiser"):
                 opt = self.algo.start(x_start, rng, constraint=self.constraint, carry=carry)
-                while not opt.done:
-                    poses = opt.ask()
-                    options = {**opt.fitness_options, **extra} if extra else opt.fitness_options
-                    opt.tell(fitness.evaluate(poses, options))
+                # a staged search names its stage's options once it has asked for the stage's poses
+                optimize(opt, lambda poses, opt=opt: fitness.evaluate(
+                    poses, {**opt.fitness_options, **extra} if extra else opt.fitness_options))
             evals += opt.evaluations
             if best_opt is None or opt.best.score > best_opt.best.score:
                 best_opt = opt

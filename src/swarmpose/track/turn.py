@@ -31,6 +31,7 @@ import numpy as np
 
 from swarmpose.errors import ConfigError
 from swarmpose.joints import JOINT_INDEX
+from swarmpose.optim.base import optimize
 from swarmpose.optim.refine import PatternSearch
 
 __all__ = ["TurnSearch", "TurnResult", "turn_candidates", "keypoint_turn"]
@@ -177,11 +178,10 @@ class TurnSearch:
                 break
             ps = PatternSearch(cands[idx[j]], step, self.budget, lower=model.lower, upper=model.upper,
                                constraint=constraint)
-            while not ps.done:
-                ps.tell(fitness.evaluate(ps.ask(), options))
-            result.evaluations += ps.evaluations
-            if ps.best.score > best_score:
-                best_x, best_score, best_k = np.array(ps.best.x), float(ps.best.score), int(idx[j])
+            found = optimize(ps, lambda poses: fitness.evaluate(poses, options))
+            result.evaluations += found.evaluations
+            if found.score > best_score:
+                best_x, best_score, best_k = np.array(found.x), float(found.score), int(idx[j])
         if best_k < 0:
             return result
         if self.guard:
