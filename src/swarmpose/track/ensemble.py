@@ -11,7 +11,7 @@ particle set and last poses (its motion model predicts from its own track), and 
 is the run's pose. A member with a joint more than ``reset`` mm from the consensus's goes on from ``x*`` (its last
 pose replaced, its particle set moved onto it, :func:`swarmpose.track.step.recentre`): a member that lost a limb
 votes with the others again from the next frame on instead of voting wrong for a stretch of frames. The pose of a
-frame reads that frame's member poses only: an ensemble is as causal as one search.
+frame reads that frame's member poses only: an ensemble is as causal as one search (:mod:`swarmpose.track.step`).
 
 :class:`Ensemble` is what :func:`swarmpose.track.tracker.run_tracker` steps instead of one
 :class:`~swarmpose.track.step.FrameSearch` when the configuration has ``members > 1``; :meth:`Ensemble.state` and
