@@ -14,8 +14,14 @@ Per clip: the misses counted, the share where each term scores the truth's limb 
 difference (truth's limb less tracked), how far the truth's limb puts the joint (it moves the limb only, on
 the tracked trunk), and the share where the whole IK pose scores higher than the tracked one.
 
+``--polish N``: on each frame with a miss, a pattern search of N evaluations over the whole pose (the
+refinement's step and options, the run's hard priors) from the tracked pose and from the IK pose: where the
+fitness is the refinement's, do the two basins' tops differ, and where does each leave the missed joint? Where the
+truth's basin ends higher and near the truth a search could find it; where the two end within a few thousandths of
+each other, or the truth's drifts off, the evidence cannot tell them apart.
+
 Run:  .venv/bin/python scripts/miss_evidence.py results/detected-keypoints/cmu_131_01_walk-refined-heading
-          [more folders] [--runs 3] [--limit 100] [--json]
+          [more folders] [--runs 3] [--limit 100] [--polish 1500] [--json]
 """
 
 from __future__ import annotations
@@ -32,9 +38,11 @@ from swarmpose.fitness.base import parse_fitness_options
 from swarmpose.io.files import read_json_object
 from swarmpose.io.sequence import open_sequence
 from swarmpose.joints import JOINTS15
+from swarmpose.optim.base import optimize
+from swarmpose.optim.refine import PatternSearch
 from swarmpose.track.observation import frame_observation
 from swarmpose.track.start import has_keypoints, tracked_views
-from swarmpose.track.tracker import TrackConfig, _make_fitness, prepare_track
+from swarmpose.track.tracker import TrackConfig, _make_fitness, prepare_track, tracker_priors
 
 #: The joints one limb's parameters move, and that limb's parameter group.
 LIMB_OF = {"l_elbow": "left_arm", "l_wrist": "left_arm", "r_elbow": "right_arm", "r_wrist": "right_arm",
@@ -42,7 +50,16 @@ LIMB_OF = {"l_elbow": "left_arm", "l_wrist": "left_arm", "r_elbow": "right_arm",
 TERMS = ("fitness", "silhouette", "edge", "image", "keypoints")
 
 
-def clip_evidence(results: Path, runs: int, limit: float) -> dict:
+def polished(fitness, model, algo, constraint, x: np.ndarray, options: dict, budget: int) -> tuple[np.ndarray, float]:
+    """The top of ``x``'s basin: a pattern search of ``budget`` evaluations over the whole pose with the
+    refinement's step (``refine_step`` of the search's spread) under the run's hard priors."""
+    ps = PatternSearch(np.asarray(x, dtype=np.float64), algo.refine_step * np.asarray(algo.sigma, dtype=np.float64),
+                       budget, lower=model.lower, upper=model.upper, constraint=constraint)
+    found = optimize(ps, lambda poses: fitness.evaluate(poses, options))
+    return np.asarray(found.x), float(found.score)
+
+
+def clip_evidence(results: Path, runs: int, limit: float, polish: int = 0) -> dict:
     config = read_json_object(results / "config.json")
     fields = {f.name for f in dataclasses.fields(TrackConfig)}
     cfg = TrackConfig(**{k: v for k, v in config.items() if k in fields and k != "fitness_kind"})
@@ -51,6 +68,7 @@ def clip_evidence(results: Path, runs: int, limit: float) -> dict:
         raise SystemExit(f"{results}: the sequence has no ground truth")
     model, fitness = setup.model, _make_fitness(setup)
     algo = cfg.optimizer(model)
+    constraint = tracker_priors(model, algo).valid
     options = {**getattr(algo, "refine_options", {}), **(getattr(algo, "frame_options", None) or {}),
                **parse_fitness_options(cfg.fitness_options)}
     run_dirs = sorted(results.glob("run_*/track.npz"))[:runs]
@@ -79,6 +97,12 @@ def clip_evidence(results: Path, runs: int, limit: float) -> dict:
                     continue
                 fitness.bind(frame_observation(seq, int(setup.frame_indices[t]), cfg.fitness_kind, cfg.downsample,
                                                backgrounds, feature_options, views, keypoints))
+                tops = None
+                if polish > 0:  # the tops of the tracked pose's basin and of the truth's
+                    tops = [polished(fitness, model, algo, constraint, x0, run_options, polish)
+                            for x0 in (params[t], setup.ik_params[t])]
+                    top_err = np.linalg.norm(model.joints15(np.stack([tops[0][0], tops[1][0]]))
+                                             - setup.gt_joints[t][None], axis=-1)
                 for joint in missed:
                     x = params[t].copy()
                     x_truth = x.copy()
@@ -99,6 +123,10 @@ def clip_evidence(results: Path, runs: int, limit: float) -> dict:
                                  "truth_limb_error_mm": moved,
                                  "truth_limb_minus_tracked": {k: float(v[1] - v[0]) for k, v in score.items()},
                                  "truth_pose_minus_tracked": float(whole - tracked)})
+                    if tops is not None:
+                        rows[-1]["polished"] = {"tracked_score": tops[0][1], "truth_score": tops[1][1],
+                                                "tracked_error_mm": float(top_err[0, j]),
+                                                "truth_error_mm": float(top_err[1, j])}
     finally:
         seq.close()
     out = {"results": str(results), "runs": len(run_dirs), "limit_mm": limit, "misses": len(rows)}
@@ -109,6 +137,24 @@ def clip_evidence(results: Path, runs: int, limit: float) -> dict:
             d = np.array([r["truth_limb_minus_tracked"][term] for r in rows if term in r["truth_limb_minus_tracked"]])
             if len(d):
                 out[term] = {"truth_higher": float(np.mean(d > 0)), "median_difference": float(np.median(d))}
+        if polish > 0:
+            d = np.array([r["polished"]["truth_score"] - r["polished"]["tracked_score"] for r in rows])
+            # per frame, the best top any run's basin reached against the truth's: a run that stopped below its
+            # basin's top makes the truth look better than the evidence says
+            best: dict[int, list[float]] = {}
+            for r in rows:
+                b = best.setdefault(r["position"], [-np.inf, r["polished"]["truth_score"]])
+                b[0] = max(b[0], r["polished"]["tracked_score"])
+            frames = {t: {"best_tracked_top": b[0], "truth_top": b[1], "difference": b[1] - b[0]}
+                      for t, b in sorted(best.items())}
+            out["polished_frames"] = frames
+            out["polished"] = {"evaluations": polish, "truth_higher": float(np.mean(d > 0)),
+                               "median_difference": float(np.median(d)),
+                               "median_abs_difference": float(np.median(np.abs(d))),
+                               "truth_error_mm_median": float(np.median([r["polished"]["truth_error_mm"]
+                                                                         for r in rows])),
+                               "tracked_error_mm_median": float(np.median([r["polished"]["tracked_error_mm"]
+                                                                           for r in rows]))}
     out["rows"] = rows
     return out
 
@@ -118,9 +164,11 @@ def main() -> None:
     ap.add_argument("results", type=Path, nargs="+")
     ap.add_argument("--runs", type=int, default=3, help="the first N runs of each folder")
     ap.add_argument("--limit", type=float, default=100.0, help="mm: a joint farther off is a miss")
+    ap.add_argument("--polish", type=int, default=0, metavar="N",
+                    help="pattern-search evaluations from the tracked and the IK pose on each frame with a miss")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
-    clips = [clip_evidence(r, args.runs, args.limit) for r in args.results]
+    clips = [clip_evidence(r, args.runs, args.limit, args.polish) for r in args.results]
     if args.json:
         print(json.dumps({"clips": clips}))
         return
@@ -135,6 +183,14 @@ def main() -> None:
                  for t in TERMS]
         print(f"{Path(c['results']).name:40s} {c['misses']:6d} {c['truth_limb_error_mm_median']:11.0f} "
               f"{100 * c['truth_pose_higher']:8.0f} %  " + "  ".join(cells))
+        if "polished" in c:
+            p = c["polished"]
+            print(f"{'':40s} polished ({p['evaluations']} evaluations from each): the truth's basin higher "
+                  f"{100 * p['truth_higher']:.0f} %, by {p['median_difference']:+.4f} (median; |.| "
+                  f"{p['median_abs_difference']:.4f}); the missed joint then {p['truth_error_mm_median']:.0f} mm off "
+                  f"from the truth, {p['tracked_error_mm_median']:.0f} mm from the tracked pose")
+            diffs = " ".join(f"{t}: {v['difference']:+.4f}" for t, v in c["polished_frames"].items())
+            print(f"{'':40s} per frame, the truth's top less the best run's: {diffs}")
 
 
 if __name__ == "__main__":

@@ -238,3 +238,10 @@ def test_miss_evidence_finds_a_moved_arm_and_the_evidence_for_the_truths(keypoin
     assert all(r["truth_limb_error_mm"] < 10 for r in found["rows"])
     for term in ("fitness", "silhouette", "image", "keypoints"):
         assert found[term]["truth_higher"] == 1.0, term
+    # polished: a short pattern search cannot carry the swung arm back, the truth's basin tops it on every frame
+    # and keeps the wrist within the IK floor's reach
+    polished = script.clip_evidence(out, 1, 100.0, polish=62)
+    assert polished["misses"] == found["misses"] and polished["polished"]["truth_higher"] == 1.0
+    assert polished["polished"]["truth_error_mm_median"] < 20 < polished["polished"]["tracked_error_mm_median"]
+    assert set(polished["polished_frames"]) == {r["position"] for r in found["rows"]}
+    assert all(v["difference"] > 0 for v in polished["polished_frames"].values())
