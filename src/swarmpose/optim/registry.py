@@ -406,6 +406,9 @@ class RefinedConfig(OptimizerConfig):
     turn_search : Mapping
         Settings of the tracker's search of the body's heading (:mod:`swarmpose.track.turn`; :data:`TURN_SEARCH`),
         read by the tracker only; empty: none.
+    lean_search : Mapping
+        Settings of the tracker's search of the trunk's lean, the pelvis pitched against the spine
+        (:mod:`swarmpose.track.lean`; :data:`LEAN_SEARCH`), read by the tracker only; empty: none.
     heading_speed : float or None
         Degrees per frame: the part of the heading's last step beyond this is carried on into the prediction (a
         spin goes on, a walking pelvis's rocking does not); None: not. Read by the tracker only.
@@ -435,6 +438,7 @@ class RefinedConfig(OptimizerConfig):
     keypoint_proposals: float = 0.0
     silhouette_height: bool = False
     turn_search: Mapping[str, Any] = field(default_factory=dict)
+    lean_search: Mapping[str, Any] = field(default_factory=dict)
     heading_speed: float | None = None
     frame_options: Mapping[str, Any] = field(default_factory=dict)
     coupled_limits: bool = False
@@ -464,6 +468,7 @@ class RefinedConfig(OptimizerConfig):
         object.__setattr__(self, "refine_options", frozen_options(self.refine_options))
         object.__setattr__(self, "recovery", frozen_options(self.recovery))
         object.__setattr__(self, "turn_search", frozen_options(self.turn_search))
+        object.__setattr__(self, "lean_search", frozen_options(self.lean_search))
 
     @property
     def evals_per_frame(self) -> int:
@@ -480,6 +485,9 @@ class RefinedConfig(OptimizerConfig):
         if t:
             n += (1 + len(t["whole"]) + len(t["pelvis"]) + int(t["n_best"]) * int(t["budget"])
                   + (2 if t.get("guard") else 0) + (2 if t.get("keypoints") else 0))
+        lean = self.lean_search
+        if lean:
+            n += 1 + len(lean["degrees"]) + int(lean["n_best"]) * int(lean["budget"])
         return n if self.members == 1 else int(self.members) * n + 1
 
     def start(self, x0: Any, rng: np.random.Generator, constraint: Constraint | None = None,
@@ -620,6 +628,12 @@ TURN_SEARCH: Mapping[str, Any] = frozen_options({
     "whole": (30.0, -30.0, 60.0, -60.0, 90.0, -90.0, 135.0, -135.0, 180.0),
     "pelvis": (15.0, -15.0, 30.0, -30.0, 45.0, -45.0),
     "n_best": 2, "budget": 150, "guard": "silhouette"})
+
+#: The tracker's search of the trunk's lean (``swarmpose.track.lean``, ``--variant lean=on``): the pelvis pitched
+#: against the spine and the hips by each of these degrees, the best two polished by 100 pattern-search evaluations
+#: each (207 evaluations a frame).
+LEAN_SEARCH: Mapping[str, Any] = frozen_options({"degrees": (-30.0, -20.0, -10.0, 10.0, 20.0, 30.0), "n_best": 2,
+                                                 "budget": 100})
 
 #: The limbs a refined configuration's recovery searches (``swarmpose.track.recovery.LIMBS``).
 RECOVERY_LIMBS = 4

@@ -36,7 +36,8 @@ def apply_variant(config: Any, variant: str) -> Any:
       the silhouettes' triangulated centre since the frame before (``height=off``: not); ``turn=on``: the body's
       heading searched again on every frame (the pose and its pelvis alone turned, the best polished:
       ``swarmpose.track.turn``, 318 evaluations); ``turn_margin=M``: a turned pose kept only when it scores
-      more than M above the frame's pose; ``turn_keypoints=on``: also the turn that lays the model's hips onto the
+      more than M above the frame's pose; ``lean=on``: the trunk's lean searched again on every frame, the pelvis
+      pitched against the spine and the hips (``swarmpose.track.lean``, 207 evaluations); ``turn_keypoints=on``: also the turn that lays the model's hips onto the
       frame's triangulated keypoints (sequences with keypoints); ``heading_speed=D``: the part of the heading's last step beyond D degrees
       carried on into the prediction; ``keypoint_ik=on``: each frame's pose fitted to the triangulated
       keypoints from where the searches left it, kept when it scores higher (sequences with keypoints);
@@ -58,9 +59,10 @@ def apply_variant(config: Any, variant: str) -> Any:
             config = apply_variant(config, part)
         return config
     head = variant.partition("=")[0].strip()
-    if head in ("height", "turn", "keypoint_ik", "coupled_limits"):
+    if head in ("height", "turn", "lean", "keypoint_ik", "coupled_limits"):
         field, on = {"height": ("silhouette_height", "silhouettes"), "turn": ("turn_search", "on"),
-                     "keypoint_ik": ("keypoint_ik", "on"), "coupled_limits": ("coupled_limits", "on")}[head]
+                     "lean": ("lean_search", "on"), "keypoint_ik": ("keypoint_ik", "on"),
+                     "coupled_limits": ("coupled_limits", "on")}[head]
         value = variant.partition("=")[2].strip()
         if not hasattr(config, field) or value not in (on, "off"):
             raise ConfigError(f"variant {variant!r}: expected {head}={on} or {head}=off on a refined "
@@ -69,6 +71,10 @@ def apply_variant(config: Any, variant: str) -> Any:
             from .registry import TURN_SEARCH
 
             return dataclasses.replace(config, turn_search=TURN_SEARCH if value == on else {})
+        if head == "lean":
+            from .registry import LEAN_SEARCH
+
+            return dataclasses.replace(config, lean_search=LEAN_SEARCH if value == on else {})
         return dataclasses.replace(config, **{field: value == on})
     if head == "heading_speed":
         value = variant.partition("=")[2].strip()

@@ -6,7 +6,8 @@ root's height moved by the rise of the silhouettes' triangulated centre since th
 ``keypoint_proposals`` a share of the carried set's weight given to the pose fitted to the frame's triangulated
 keypoints from the prediction), the optimiser's search
 (on the first frame of a start from the silhouettes: a turn of headings, the best few searched, then more
-rounds from the best), the loss detection and re-search of :mod:`swarmpose.track.recovery`, and the per-frame
+rounds from the best), the searches of the body's heading (:mod:`swarmpose.track.turn`) and of the trunk's lean
+(:mod:`swarmpose.track.lean`), the loss detection and re-search of :mod:`swarmpose.track.recovery`, and the per-frame
 keypoint IK of the configurations that ask for it. A frame reads its own observation and, for the keypoint fits,
 one thing more: a joint its keypoints lack is taken from the nearest tracked frame, up to two either side (the
 earlier first), that has it (:func:`swarmpose.track.start.fill_gaps`), so with keypoints a live run would lag two
@@ -98,6 +99,7 @@ class FrameSearch:
     search_start: bool = False
     silhouette_height: bool = False
     turn: Any = None  # a swarmpose.track.turn.TurnSearch
+    lean: Any = None  # a swarmpose.track.lean.LeanSearch
     heading_speed: float | None = None  # degrees per frame (the algorithm's heading_speed)
     keypoint_ik: bool = True  # with kp_joints: each frame's pose fitted to them after the searches
     keypoint_ik_polish: int = 0  # pattern-search evaluations from a keypoint fit that scores no higher
@@ -198,6 +200,13 @@ class FrameSearch:
             evals += turned.evaluations
             if turned.turned:
                 x, score = turned.x, turned.score
+                carry = recentre(carry, x, [np.arange(model.n_params)], model.lower, model.upper)
+        if self.lean is not None:  # the trunk leaned by the pelvis against the spine, before the limbs' searches
+            with timer.part("recovery"):
+                leaned = self.lean.run(fitness, model, x, self.constraint, self.algo.sigma, extra or None)
+            evals += leaned.evaluations
+            if leaned.leaned:
+                x, score = leaned.x, leaned.score
                 carry = recentre(carry, x, [np.arange(model.n_params)], model.lower, model.upper)
         recovered: list[str] = []
         if self.recovery is not None:
