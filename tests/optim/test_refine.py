@@ -7,7 +7,7 @@ import pytest
 
 from swarmpose.optim.apf import AnnealedParticleFilter
 from swarmpose.optim.base import ConfigError, optimize
-from swarmpose.optim.refine import BoxSearch, Chain, PatternSearch
+from swarmpose.optim.refine import BoxSearch, Chain, PatternSearch, polish_best
 
 
 def quadratic(centre, scales):
@@ -145,3 +145,23 @@ def test_line_moves_equal_the_plain_version_to_the_last_bit():
         want = line_moves_reference(asked, scores, fx, x, h, opt.newton, opt.gradient)
         assert got.shape == want.shape
         assert np.array_equal(got, want), case
+
+
+def test_polish_best_climbs_from_the_best_few_and_keeps_what_beats_the_bar():
+    """The two best-scored starts are polished (the third, better placed but scored lower, is not), the best
+    polished one is returned with its start's index while it beats ``above``; a non-finite score ends the list."""
+    target = np.array([1.0, -2.0, 0.5])
+
+    def score(poses: np.ndarray) -> np.ndarray:
+        return -np.sum((np.asarray(poses) - target) ** 2, axis=1)
+
+    cands = np.array([[3.0, -2.0, 0.5], [1.0, 1.0, 0.5], [1.2, -2.0, 0.5], [9.0, 9.0, 9.0]])
+    scores = np.array([-0.5, -0.1, -9.0, np.nan])  # the third is nearest but scored lowest: not tried
+    lo, hi = np.full(3, -10.0), np.full(3, 10.0)
+    x, s, k, n = polish_best(score, cands, scores, 2, np.full(3, 0.5), 60, lo, hi)
+    assert k in (0, 1) and n == 120 and s > -1e-3
+    np.testing.assert_allclose(x, target, atol=0.05)
+    none = polish_best(score, cands, scores, 2, np.full(3, 0.5), 60, lo, hi, above=1.0)
+    assert none[0] is None and none[1] == 1.0 and none[2] == -1 and none[3] == 120
+    stop = polish_best(score, cands, np.array([np.nan, -np.inf, -np.inf, -np.inf]), 3, np.full(3, 0.5), 60, lo, hi)
+    assert stop == (None, -np.inf, -1, 0)

@@ -34,9 +34,10 @@ from .base import (
     check_bounds,
     check_rng,
     feasibility,
+    optimize,
 )
 
-__all__ = ["PatternSearch", "BoxSearch", "Chain", "line_moves_reference"]
+__all__ = ["PatternSearch", "BoxSearch", "Chain", "line_moves_reference", "polish_best"]
 
 
 class PatternSearch(Optimizer):
@@ -415,3 +416,21 @@ class Chain(Optimizer):
     def _tell(self, scores: np.ndarray) -> None:
         self._current._tell_checked(scores)  # checked once, by this search's tell
         self._advance()
+
+
+def polish_best(score: Callable[[np.ndarray], np.ndarray], cands: np.ndarray, scores: np.ndarray, n_best: int,
+                step: np.ndarray, budget: int, lower: np.ndarray, upper: np.ndarray,
+                constraint: Constraint | None = None, above: float = -np.inf) -> tuple[np.ndarray | None, float, int, int]:
+    """The best of ``cands (M, D)`` after a local search: the ``n_best`` highest of their ``scores (M,)`` (``-inf``:
+    not tried), from the highest down until a non-finite one, each polished by a :class:`PatternSearch` of
+    ``budget`` evaluations of ``score``. Returns ``(x, its score, its candidate's index, evaluations)`` of the best
+    polished pose that scores above ``above``; ``(None, above, -1, evaluations)`` when none does."""
+    best_x, best_score, best_k, evaluations = None, float(above), -1, 0
+    for j in np.argsort(-np.asarray(scores, dtype=np.float64))[:n_best]:
+        if not np.isfinite(scores[j]):
+            break
+        found = optimize(PatternSearch(cands[j], step, budget, lower=lower, upper=upper, constraint=constraint), score)
+        evaluations += found.evaluations
+        if found.score > best_score:
+            best_x, best_score, best_k = np.array(found.x), float(found.score), int(j)
+    return best_x, best_score, best_k, evaluations

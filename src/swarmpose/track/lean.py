@@ -22,8 +22,7 @@ from typing import Any
 import numpy as np
 
 from swarmpose.errors import ConfigError
-from swarmpose.optim.base import optimize
-from swarmpose.optim.refine import PatternSearch
+from swarmpose.optim.refine import polish_best
 
 __all__ = ["LeanResult", "LeanSearch", "lean_candidates", "LEAN_PARAMETERS"]
 
@@ -102,16 +101,11 @@ class LeanSearch:
         scores = np.nan_to_num(np.asarray(fitness.evaluate(np.vstack([x[None], cands[ok]]), options), float),
                                nan=-np.inf)
         result = LeanResult(x=x, score=float(scores[0]), evaluations=1 + int(ok.sum()))
-        leaned, idx = scores[1:], np.flatnonzero(ok)
-        step = 0.5 * np.asarray(sigma, dtype=np.float64)
-        for j in np.argsort(-leaned, kind="stable")[: self.n_best]:
-            if not np.isfinite(leaned[j]):
-                break
-            ps = PatternSearch(cands[idx[j]], step, self.budget, lower=model.lower, upper=model.upper,
-                               constraint=constraint)
-            found = optimize(ps, lambda poses: fitness.evaluate(poses, options))
-            result.evaluations += found.evaluations
-            if found.score > result.score:
-                result.x, result.score = np.array(found.x), float(found.score)
-                result.leaned = float(self.degrees[idx[j]])
+        idx = np.flatnonzero(ok)
+        best_x, best_score, k, n = polish_best(lambda poses: fitness.evaluate(poses, options), cands[idx], scores[1:],
+                                               self.n_best, 0.5 * np.asarray(sigma, dtype=np.float64), self.budget,
+                                               model.lower, model.upper, constraint, above=result.score)
+        result.evaluations += n
+        if k >= 0:
+            result.x, result.score, result.leaned = best_x, best_score, float(self.degrees[idx[k]])
         return result

@@ -31,8 +31,7 @@ import numpy as np
 
 from swarmpose.errors import ConfigError
 from swarmpose.joints import JOINT_INDEX
-from swarmpose.optim.base import optimize
-from swarmpose.optim.refine import PatternSearch
+from swarmpose.optim.refine import polish_best
 
 __all__ = ["TurnSearch", "TurnResult", "turn_candidates", "keypoint_turn"]
 
@@ -170,20 +169,14 @@ class TurnSearch:
                                nan=-np.inf)
         result = TurnResult(x=x, evaluations=1 + int(ok.sum()))
         here, turned = scores[0], scores[1:]
-        best_x, best_score, best_k = x, here + self.margin, -1
         idx = np.flatnonzero(ok)
-        step = 0.5 * np.asarray(sigma, dtype=np.float64)
-        for j in np.argsort(-turned)[: self.n_best]:
-            if not np.isfinite(turned[j]):
-                break
-            ps = PatternSearch(cands[idx[j]], step, self.budget, lower=model.lower, upper=model.upper,
-                               constraint=constraint)
-            found = optimize(ps, lambda poses: fitness.evaluate(poses, options))
-            result.evaluations += found.evaluations
-            if found.score > best_score:
-                best_x, best_score, best_k = np.array(found.x), float(found.score), int(idx[j])
-        if best_k < 0:
+        best_x, best_score, k, n = polish_best(lambda poses: fitness.evaluate(poses, options), cands[idx], turned,
+                                               self.n_best, 0.5 * np.asarray(sigma, dtype=np.float64), self.budget,
+                                               model.lower, model.upper, constraint, above=here + self.margin)
+        result.evaluations += n
+        if k < 0:
             return result
+        best_k = int(idx[k])
         if self.guard:
             g = fitness.evaluate(np.stack([x, best_x]), {**dict(options or {}), "terms": self.guard})
             result.evaluations += 2
