@@ -102,8 +102,8 @@ def test_settings_a_model_without_the_parameters_and_the_variant():
 
 
 def test_a_run_with_the_lean_search_counts_its_evaluations(short_sequence: Path, tmp_path: Path):
-    """The tracker searches the lean on every frame after the first (the start is the IK pose): each frame's
-    evaluations are the small search's and the lean's (its polishes can stop early), and the track differs."""
+    """The tracker searches the lean on every frame: each frame's evaluations are the small search's and the
+    lean's (its polishes can stop early), and the track differs from the one without it."""
     from swarmpose.track.tracker import TrackConfig, prepare_track, run_tracker
 
     cfg = TrackConfig(algo="refined", fps=20.0, seed=5, downsample=2, max_frames=3,
