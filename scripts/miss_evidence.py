@@ -69,6 +69,7 @@ def clip_evidence(results: Path, runs: int, limit: float, polish: int = 0) -> di
     model, fitness = setup.model, _make_fitness(setup)
     algo = cfg.optimizer(model)
     constraint = tracker_priors(model, algo).valid
+    truth_tops: dict[tuple, tuple[np.ndarray, float]] = {}  # (position, options) -> the truth's basin's top
     options = {**getattr(algo, "refine_options", {}), **(getattr(algo, "frame_options", None) or {}),
                **parse_fitness_options(cfg.fitness_options)}
     run_dirs = sorted(results.glob("run_*/track.npz"))[:runs]
@@ -98,9 +99,13 @@ def clip_evidence(results: Path, runs: int, limit: float, polish: int = 0) -> di
                 fitness.bind(frame_observation(seq, int(setup.frame_indices[t]), cfg.fitness_kind, cfg.downsample,
                                                backgrounds, feature_options, views, keypoints))
                 tops = None
-                if polish > 0:  # the tops of the tracked pose's basin and of the truth's
-                    tops = [polished(fitness, model, algo, constraint, x0, run_options, polish)
-                            for x0 in (params[t], setup.ik_params[t])]
+                if polish > 0:  # the tops of the tracked pose's basin and of the truth's (the same for every run)
+                    key = (t, tuple(sorted(run_options.items())))
+                    if key not in truth_tops:
+                        truth_tops[key] = polished(fitness, model, algo, constraint, setup.ik_params[t], run_options,
+                                                   polish)
+                    tops = [polished(fitness, model, algo, constraint, params[t], run_options, polish),
+                            truth_tops[key]]
                     top_err = np.linalg.norm(model.joints15(np.stack([tops[0][0], tops[1][0]]))
                                              - setup.gt_joints[t][None], axis=-1)
                 for joint in missed:

@@ -37,9 +37,9 @@ def apply_variant(config: Any, variant: str) -> Any:
       heading searched again on every frame (the pose and its pelvis alone turned, the best polished:
       ``swarmpose.track.turn``, 318 evaluations); ``turn_margin=M``: a turned pose kept only when it scores
       more than M above the frame's pose; ``lean=on``: the trunk's lean searched again on every frame, the pelvis
-      pitched against the spine and the hips (``swarmpose.track.lean``, 207 evaluations); ``turn_keypoints=on``: also the turn that lays the model's hips onto the
-      frame's triangulated keypoints (sequences with keypoints); ``heading_speed=D``: the part of the heading's last step beyond D degrees
-      carried on into the prediction; ``keypoint_ik=on``: each frame's pose fitted to the triangulated
+      pitched against the spine and the hips (``swarmpose.track.lean``, 207 evaluations); ``turn_keypoints=on``:
+      also the turn that lays the model's hips onto the frame's triangulated keypoints (sequences with keypoints);
+      ``heading_speed=D``: the part of the heading's last step beyond D degrees carried on into the prediction; ``keypoint_ik=on``: each frame's pose fitted to the triangulated
       keypoints from where the searches left it, kept when it scores higher (sequences with keypoints);
       ``keypoint_ik_polish=B``: where that fit scores no higher than the frame's pose, B pattern-search evaluations
       from it, kept when they score higher (``off``: 0; needs ``keypoint_ik``);

@@ -24,7 +24,7 @@ import numpy as np
 from swarmpose.errors import ConfigError
 from swarmpose.optim.refine import polish_best
 
-__all__ = ["LeanResult", "LeanSearch", "lean_candidates", "LEAN_PARAMETERS"]
+__all__ = ["LeanResult", "LeanSearch", "lean_candidates", "require_lean_parameters", "LEAN_PARAMETERS"]
 
 #: The parameters a lean moves, and by how much of it: the pelvis's pitch +d, the spine's flexion -d, both hips'
 #: flexion +d.
@@ -32,14 +32,19 @@ LEAN_PARAMETERS: tuple[tuple[str, float], ...] = (("pelvis_ry", 1.0), ("spine_fl
                                                   ("r_hip_flex", 1.0))
 
 
-def lean_candidates(model: Any, x: np.ndarray, degrees: tuple[float, ...]) -> np.ndarray:
-    """``(len(degrees), D)``: pose ``x`` leaned by each of ``degrees`` (:data:`LEAN_PARAMETERS`), clipped to the
-    joint limits. Raises ConfigError where the model lacks one of the parameters."""
+def require_lean_parameters(model: Any) -> None:
+    """Raise ConfigError, naming them, where ``model`` lacks one of :data:`LEAN_PARAMETERS`."""
     names = set(model.param_names)
     missing = [n for n, _ in LEAN_PARAMETERS if n not in names]
     if missing:
         raise ConfigError(f"the lean search needs the parameters {', '.join(missing)}, which body model "
                           f"{model.name!r} has not")
+
+
+def lean_candidates(model: Any, x: np.ndarray, degrees: tuple[float, ...]) -> np.ndarray:
+    """``(len(degrees), D)``: pose ``x`` leaned by each of ``degrees`` (:data:`LEAN_PARAMETERS`), clipped to the
+    joint limits. Raises ConfigError where the model lacks one of the parameters."""
+    require_lean_parameters(model)
     x = np.asarray(x, dtype=np.float64)
     out = np.repeat(x[None], len(degrees), axis=0)
     d = np.radians(np.asarray(degrees, dtype=np.float64))

@@ -47,7 +47,7 @@ from swarmpose.metrics import joint_acceleration, track_errors, valid_frames
 from swarmpose.track.constraint import PriorsConstraint
 from swarmpose.track.ensemble import Ensemble
 from swarmpose.track.feature_store import FeatureStore
-from swarmpose.track.lean import LeanSearch, lean_candidates
+from swarmpose.track.lean import LeanSearch, require_lean_parameters
 from swarmpose.track.motion import parse_motion
 from swarmpose.track.observation import IMAGE_FITNESS, MARKER_FITNESS, Prefetcher, frame_observation
 from swarmpose.track.progress import RunProgress
@@ -483,7 +483,7 @@ def prepare_track(sequence_path: str | Path, config: TrackConfig, out_dir: Path 
         parse_motion(config.motion).mask(model)  # unknown parameter groups fail here, before any run
         algo = config.optimizer(model)  # unknown algorithm or variant: before the IK fit is written
         if getattr(algo, "lean_search", None):  # a model without the lean's parameters: refused here, not in a worker
-            lean_candidates(model, model.zero_pose(), (1.0,))
+            require_lean_parameters(model)
         from swarmpose.fitness.base import parse_fitness_options
 
         cones = parse_fitness_options(config.fitness_options).get("edge_cones")
