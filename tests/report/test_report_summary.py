@@ -236,6 +236,19 @@ def test_reproduce_command_carries_every_non_default_setting(results_copy: Path)
     assert "| optimiser variant | `stage2=40x20` |" in md and "| motion model | constant-velocity@root_position |" in md
 
 
+@pytest.mark.parametrize(("path", "expected"), [(None, " --backward-path 0"), (0.3, ""), (1.0, " --backward-path 1")])
+def test_reproduce_command_carries_the_backward_path_weight(results_copy: Path, path, expected):
+    """A folder without the weight predates the path: its passes' poses were chosen frame by frame (0)."""
+    cfg = json.loads((results_copy / "config.json").read_text())
+    cfg.update(backward=True)
+    cfg.pop("backward_path", None)
+    if path is not None:
+        cfg["backward_path"] = path
+    (results_copy / "config.json").write_text(json.dumps(cfg))
+    cmd = write_summary(results_copy).read_text().split("Reproduce with:")[1].split("```")[1]
+    assert ("--backward" + expected) in cmd and cmd.count("--backward-path") == (1 if expected else 0)
+
+
 def test_run_folders_beyond_the_configured_runs_are_left_out(results_copy: Path):
     cfg = json.loads((results_copy / "config.json").read_text())
     n = cfg["runs"]

@@ -7,6 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from swarmpose.track.path import best_path
 from swarmpose.track.tracker import TrackConfig, prepare_track, run_tracker
 
 
@@ -31,24 +32,34 @@ def test_the_forward_pass_is_the_plain_track_and_each_frame_keeps_the_pose_the_f
     passes = both.passes
     assert np.array_equal(passes["forward_params"], fwd.params)  # the same forward pass, same stream
     assert np.array_equal(passes["forward_scores"], fwd.scores)
-    kept = passes["backward_kept"]
-    mixed = passes["backward_mixed"]
-    assert kept.shape == mixed.shape == (T,) and not (kept & mixed).any()
-    assert np.array_equal(both.params[~kept & ~mixed], fwd.params[~kept & ~mixed])
-    # per frame, the kept pose scores at least as well as the forward pass's under the refinement's options
+    kept, mixed, path_forward = passes["backward_kept"], passes["backward_mixed"], passes["backward_path_forward"]
+    assert kept.shape == mixed.shape == path_forward.shape == (T,)
+    assert not (kept & mixed).any() and not (path_forward & (kept | mixed)).any()
+    # each frame's pose is the forward pass's or the backward pass's, as the path over both chose
     setup = prepare_track(short_sequence, TrackConfig(algo="refined", seed=3, backward=True), out / "b")
+    back = passes["backward_params"]
+    take = best_path(np.stack([passes["forward_scores"], passes["backward_scores"]], axis=1),
+                     np.stack([setup.model.joints15(fwd.params), setup.model.joints15(back)], axis=1),
+                     setup.config.backward_path) == 1
+    assert np.array_equal(both.params, np.where(take[:, None], back, fwd.params))
+    assert np.array_equal(take, kept | mixed)
+    assert np.array_equal(both.params[~kept & ~mixed], fwd.params[~kept & ~mixed])
+    # per frame, the backward pass's pose scores at least as well as the forward pass's under the refinement's
+    # options (its limbs are the better of both passes')
     fit = make_fitness("silhouette_edge", setup.model)
     options = dict(setup.config.optimizer(setup.model).refine_options) or None
     with open_sequence(short_sequence) as seq:
         for i in range(T):  # the last frame too: the forward pass's pose or the fresh search's
             fit.bind(frame_observation(seq, int(setup.frame_indices[i]), "silhouette_edge", 1, seq.backgrounds()))
-            s = fit.evaluate(np.stack([fwd.params[i], both.params[i]]), options)
+            s = fit.evaluate(np.stack([fwd.params[i], back[i]]), options)
             assert s[1] >= s[0]
-            assert both.scores[i] == pytest.approx(s[1])
+            assert passes["backward_scores"][i] == pytest.approx(s[1])
+            assert both.scores[i] == pytest.approx(s[1] if take[i] else s[0])
     # the cost of both passes, per frame (the last frame: the fresh search over every heading and its rounds)
     assert np.all(both.evaluations > fwd.evaluations)
     assert both.evaluations[-1] > fwd.evaluations[-1] + 7 * 1000
     assert both.errors["backward_kept"] == int(kept.sum()) and both.errors["backward_mixed"] == int(mixed.sum())
+    assert both.errors["backward_path_forward"] == int(path_forward.sum())
 
 
 def test_the_results_folder_keeps_both_passes(tracked):
@@ -82,6 +93,24 @@ def test_the_backward_setting_names_its_folder():
     from swarmpose.cli.track_commands import default_results_name
 
     assert default_results_name("walk", TrackConfig(algo="refined", backward=True)) == "walk-refined-20fps-backward"
+    assert (default_results_name("walk", TrackConfig(algo="refined", backward=True, backward_path=0.0))
+            == "walk-refined-20fps-backward-path0")
+
+
+def test_the_path_weight_is_checked_and_its_cli_default_is_the_library_s():
+    import inspect
+
+    import swarmpose.cli.app  # noqa: F401
+    from swarmpose.cli.common import DEFAULT_BACKWARD_PATH
+    from swarmpose.cli.track_commands import track
+    from swarmpose.errors import ConfigError
+    from swarmpose.track.path import DEFAULT_PATH_WEIGHT
+
+    assert TrackConfig().backward_path == DEFAULT_PATH_WEIGHT == DEFAULT_BACKWARD_PATH
+    assert inspect.signature(track).parameters["backward_path"].default.default == DEFAULT_PATH_WEIGHT
+    for bad in (-1.0, float("inf"), True, "0.3"):
+        with pytest.raises(ConfigError, match="backward_path must be a weight"):
+            TrackConfig(backward=True, backward_path=bad)
 
 
 def test_a_forward_pass_that_ends_lost_does_not_start_the_backward_pass_lost(short_sequence):

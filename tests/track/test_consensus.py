@@ -12,7 +12,7 @@ from typer.testing import CliRunner
 from swarmpose.body.model import load_model
 from swarmpose.cli.app import app
 from swarmpose.errors import ConfigError, DataError
-from swarmpose.track.consensus import check_groups, consensus_params, write_consensus
+from swarmpose.track.consensus import check_groups, consensus_params, run_hypotheses, write_consensus
 
 
 @pytest.fixture(scope="module")
@@ -68,6 +68,16 @@ def test_a_fit_the_constraint_refuses_leaves_the_hypothesis_nearest_the_median(b
     assert not fused.fitted.any()
     assert np.all(fused.nearest < 2)  # the two that agree are nearest the median
     assert np.array_equal(fused.params, truth)
+
+
+def test_a_run_s_hypotheses_are_its_track_or_its_two_passes():
+    """Forwards: the track. With --backward: both passes' poses, not the track (which the path takes from one or
+    the other, and would count twice); a folder from before the path: its track and the forward pass's."""
+    fwd, back, track = np.zeros((4, 31)), np.ones((4, 31)), np.full((4, 31), 2.0)
+    assert np.array_equal(run_hypotheses({"params": track}), track[None])
+    both = run_hypotheses({"params": track, "forward_params": fwd, "backward_params": back})
+    assert np.array_equal(both, np.stack([back, fwd]))
+    assert np.array_equal(run_hypotheses({"params": track, "forward_params": fwd}), np.stack([track, fwd]))
 
 
 def test_the_runs_must_split_into_tracks_of_k():

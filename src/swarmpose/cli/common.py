@@ -32,6 +32,10 @@ F = TypeVar("F", bound=Callable[..., Any])
 #: The algorithm of `track`, `demo` and `bench track` when none is named.
 DEFAULT_ALGO = "refined-heading"
 
+#: `track --backward-path`'s default: swarmpose.track.path.DEFAULT_PATH_WEIGHT (not imported here, which would
+#: import the tracker's data sources with every command; the tests check the two are equal).
+DEFAULT_BACKWARD_PATH = 0.3
+
 #: `--feature-cache` of the commands that track: the folder of the feature stores (track.feature_store).
 DEFAULT_FEATURE_CACHE = "cache/features"
 FEATURE_CACHE_HELP = ("Folder that keeps each sequence's silhouettes and edge pixels between runs (a later run of "

@@ -10,6 +10,7 @@ import typer
 from swarmpose.cli.app import app
 from swarmpose.cli.common import (
     DEFAULT_ALGO,
+    DEFAULT_BACKWARD_PATH,
     DEFAULT_FEATURE_CACHE,
     FEATURE_CACHE_HELP,
     console,
@@ -62,6 +63,8 @@ def default_results_name(name: str, cfg: TrackConfig) -> str:
         parts.append("views-" + folder_slug(cfg.views))
     if cfg.backward:
         parts.append("backward")
+        if cfg.backward_path != DEFAULT_BACKWARD_PATH:
+            parts.append(f"path{cfg.backward_path:g}")
     if cfg.smooth:
         parts.append(f"smooth{cfg.smooth:g}s")
     return "-".join(parts)
@@ -173,6 +176,11 @@ def track(
                                                             "backwards and keep, per frame, the pose the fitness "
                                                             "prefers (the backward pass goes on from it). Twice "
                                                             "the time; repairs limbs one direction loses."),
+    backward_path: float = typer.Option(DEFAULT_BACKWARD_PATH, "--backward-path", min=0.0,
+                                        help="With --backward: the two passes' poses are chosen as one path over "
+                                             "the frames, the fitness against this weight on the joints' steps "
+                                             "between frames (a pose with a limb far off that no neighbouring frame "
+                                             "has loses); 0: each frame chooses alone."),
     smooth: float = typer.Option(0.0, "--smooth", min=0.0, max=10.0,
                                  help="Offline: smooth the poses over time with a Gaussian of this standard "
                                       "deviation in seconds, e.g. 0.05 (0: off). Less jitter; track.npz keeps the "
@@ -213,7 +221,7 @@ def track(
                       downsample=downsample, seed=seed, fitness_options=fitness_options,
                       feature_options=features, optim_variant=variant, motion=motion,
                       max_frames=max_frames, subject=str(subject or ""), height_mm=height, views=views,
-                      backward=backward, smooth=smooth)
+                      backward=backward, backward_path=backward_path, smooth=smooth)
     if backend == "torch" and not scheduler:
         import torch
 

@@ -110,6 +110,9 @@ def _reproduce(cfg: dict[str, Any]) -> str | None:
         parts.append(f"{opt} {v:g}" if isinstance(v, float) else f"{opt} {shlex.quote(str(v))}")
     if cfg.get("backward"):
         parts.append("--backward")
+        path = cfg.get("backward_path", 0.0)  # a folder without it chose the passes' poses frame by frame
+        if path is not None and path != defaults["backward_path"]:
+            parts.append(f"--backward-path {path:g}")
     if per_track:
         parts.append(f"--consensus {per_track}")
     return " ".join(parts)

@@ -74,9 +74,10 @@ def consensus_params(model: Any, hypotheses: np.ndarray, constraint: Any = None)
 
 
 def run_hypotheses(track: dict[str, np.ndarray]) -> np.ndarray:
-    """A run's poses ``(H, T, D)`` from its ``track.npz`` arrays: its track, and its forward pass's where it was
-    tracked with ``--backward``."""
-    out = [np.asarray(track["params"], dtype=np.float64)]
+    """A run's poses ``(H, T, D)`` from its ``track.npz`` arrays: its track, or where it was tracked with
+    ``--backward`` its two passes' (the backward pass's, whose limbs are the better of both passes per frame, and the
+    forward pass's; a folder from before the path choice has the former as its track)."""
+    out = [np.asarray(track["backward_params"] if "backward_params" in track else track["params"], dtype=np.float64)]
     if "forward_params" in track:
         out.append(np.asarray(track["forward_params"], dtype=np.float64))
     return np.stack(out)

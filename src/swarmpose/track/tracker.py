@@ -50,6 +50,7 @@ from swarmpose.track.feature_store import FeatureStore
 from swarmpose.track.lean import LeanSearch, require_lean_parameters
 from swarmpose.track.motion import parse_motion
 from swarmpose.track.observation import IMAGE_FITNESS, MARKER_FITNESS, Prefetcher, frame_observation
+from swarmpose.track.path import DEFAULT_PATH_WEIGHT, best_path
 from swarmpose.track.progress import RunProgress
 from swarmpose.track.recovery import LIMBS, Recovery
 from swarmpose.track.smooth import smooth_params
@@ -105,6 +106,8 @@ class TrackConfig:
     height_mm: float | None = None  # or a subject from this stature (body.anthropometry)
     views: str = ""  # "cam01,cam02": track with these cameras only (the others held out for scoring); "" all
     backward: bool = False  # offline: track the frames again backwards, keep per frame the better pose (track.step)
+    backward_path: float = DEFAULT_PATH_WEIGHT  # with backward: the two passes' poses chosen as one path over the
+    #                                             frames, this weight on the joints' steps (track.path); 0: per frame
     smooth: float = 0.0  # offline: smooth the poses over time, Gaussian sigma in seconds (track.smooth); 0 off
 
     def __post_init__(self) -> None:
@@ -118,6 +121,10 @@ class TrackConfig:
             object.__setattr__(self, "max_frames", int(n))
         if self.subject and self.height_mm is not None:
             raise ConfigError("give a subject file or a height, not both")
+        bp = self.backward_path
+        if isinstance(bp, bool) or not isinstance(bp, int | float | np.number) or not (np.isfinite(bp) and bp >= 0):
+            raise ConfigError(f"backward_path must be a weight >= 0 (0: the passes' poses chosen frame by frame), "
+                              f"got {bp!r}")
         if isinstance(self.smooth, bool) or not (np.isfinite(self.smooth) and 0.0 <= self.smooth <= 10.0):
             raise ConfigError(f"smooth must be a time in seconds, 0 (off) to 10, got {self.smooth!r}")
         if self.height_mm is not None:
@@ -544,9 +551,10 @@ class RunResult:
     errors: dict[str, Any] = field(default_factory=dict)
     recovered: np.ndarray | None = None  # (T, limbs) bool: frames where a lost limb was searched again and kept
     part_seconds: dict[str, float] = field(default_factory=dict)  # this session's wall time per part (timing.PARTS)
-    passes: dict[str, np.ndarray] | None = None  # with the backward pass: the forward pass's poses and scores, and
+    passes: dict[str, np.ndarray] | None = None  # with the backward pass: each pass's poses and scores, and
     #                                              which frames kept the backward pass's pose (backward_kept)
-    #                                              or limbs of both passes (backward_mixed);
+    #                                              or limbs of both passes (backward_mixed), and which kept the
+    #                                              forward pose for the path's sake (backward_path_forward);
     #                                              with smoothing: the poses before it (raw_params)
     feature_store: dict[str, Any] | None = None  # the feature store's folder, frames read from it and computed
 
@@ -772,10 +780,16 @@ def run_tracker(
                                   None if progress is None else lambda d, _n: progress(T + d, setup.progress_frames))
             finally:
                 back.close()
-            passes = {"forward_params": params, "forward_scores": scores, "backward_kept": b.backward,
-                      "backward_mixed": b.mixed}
-            params, scores = b.params, np.where(np.isnan(b.scores), scores, b.scores)
-            evals, seconds, recovered = evals + b.evaluations, seconds + b.seconds, recovered | b.recovered
+            back_scores = np.where(np.isnan(b.scores), scores, b.scores)
+            take = best_path(np.stack([scores, back_scores], axis=1),
+                             np.stack([model.joints15(params), model.joints15(b.params)], axis=1),
+                             cfg.backward_path) == 1
+            passes = {"forward_params": params, "forward_scores": scores, "backward_params": b.params,
+                      "backward_scores": back_scores, "backward_kept": b.backward & take,
+                      "backward_mixed": b.mixed & take, "backward_path_forward": (b.backward | b.mixed) & ~take}
+            params, scores = np.where(take[:, None], b.params, params), np.where(take, back_scores, scores)
+            evals, seconds = evals + b.evaluations, seconds + b.seconds
+            recovered = recovered | (b.recovered & take[:, None])
     finally:
         prefetch.close()
         seq.close()
@@ -813,6 +827,7 @@ def run_tracker(
         if passes is not None and "backward_kept" in passes:
             result.errors["backward_kept"] = int(passes["backward_kept"].sum())
             result.errors["backward_mixed"] = int(passes["backward_mixed"].sum())
+            result.errors["backward_path_forward"] = int(passes["backward_path_forward"].sum())
         if run_dir is not None:
             _write_run(run_dir, setup, result, d_all)
     return result
