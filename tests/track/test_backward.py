@@ -113,6 +113,15 @@ def test_the_path_weight_is_checked_and_its_cli_default_is_the_library_s():
             TrackConfig(backward=True, backward_path=bad)
 
 
+def test_the_path_weight_without_the_backward_pass_is_refused(short_sequence, tmp_path):
+    from typer.testing import CliRunner
+
+    from swarmpose.cli.app import app
+
+    res = CliRunner().invoke(app, ["track", str(short_sequence), "--backward-path", "1", "--out", str(tmp_path / "o")])
+    assert res.exit_code != 0 and "give --backward as well" in res.output and not (tmp_path / "o").exists()
+
+
 def test_a_forward_pass_that_ends_lost_does_not_start_the_backward_pass_lost(short_sequence):
     """The forward pass's last pose turned round and its arms thrown up: the fresh wide search of the last frame
     scores better, is kept there, and the backward pass goes on from it (the other frames keep good poses)."""

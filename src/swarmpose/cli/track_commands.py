@@ -217,6 +217,11 @@ def track(
     from swarmpose.track.tracker import TrackConfig
 
     check_tracking_rate(fps, source if is_clip(source) else None)  # a .bvh clip: before it is synthesised
+    if backward_path != DEFAULT_BACKWARD_PATH and not backward:
+        from swarmpose.errors import ConfigError
+
+        raise ConfigError(f"--backward-path {backward_path:g} weighs the choice between the two passes of --backward; "
+                          "give --backward as well")
     cfg = TrackConfig(algo=algo, fps=fps, model=model, fitness=fitness, backend=backend,
                       downsample=downsample, seed=seed, fitness_options=fitness_options,
                       feature_options=features, optim_variant=variant, motion=motion,
