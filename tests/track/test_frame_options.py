@@ -209,6 +209,35 @@ def test_triangulated_keypoints_put_back_one_views_swapped_ankles(short_sequence
         np.testing.assert_allclose(keypoint_joints(seq, frames), np.asarray(seq.gt_joints)[frames], atol=0.5)
 
 
+def test_a_joint_whose_views_disagree_is_not_triangulated(short_sequence: Path, tmp_path: Path):
+    """The right wrist seen confidently by two views only, one of them 80 px off across the epipolar line (along
+    it two views cannot disagree): the two rays pass far apart, the residual check leaves one view, and the joint is
+    NaN (missing) rather than a point between them; every other joint, and the wrist on the other frames, as the
+    truth's."""
+    from swarmpose.joints import JOINT_INDEX
+    from swarmpose.track.start import keypoint_joints
+
+    rw = JOINT_INDEX["r_wrist"]
+
+    def two_disagreeing(cameras, truth: np.ndarray) -> np.ndarray:
+        uv = reproject(cameras, truth)
+        x = truth[1, rw]
+        centre = -cameras[1].R.T @ cameras[1].t  # the epipolar line of view 1's ray, in view 0
+        a, b = (cameras[0].project(p[None])[0] for p in (x, x + 0.3 * (x - centre)))
+        across = np.array([b[1] - a[1], a[0] - b[0]]) / np.hypot(*(b - a))
+        uv[1, 0, rw] += 80.0 * across
+        uv[1, 2:, rw] = np.nan  # frame 1: the wrist seen by views 0 and 1 only
+        return uv
+
+    with open_sequence(_with_keypoints(short_sequence, tmp_path / "walk", two_disagreeing)) as seq:
+        frames = np.arange(seq.n_frames)
+        got, truth = keypoint_joints(seq, frames), np.asarray(seq.gt_joints)[frames]
+        assert np.isnan(got[1, rw]).all()
+        ok = np.ones(got.shape[:2], bool)
+        ok[1, rw] = False
+        np.testing.assert_allclose(got[ok], truth[ok], atol=0.5)
+
+
 def test_miss_evidence_finds_a_moved_arm_and_the_evidence_for_the_truths(keypoint_sequence: Path, tmp_path: Path,
                                                                          load_script):
     """``scripts/miss_evidence.py`` on a results folder whose run holds the IK poses with the left arm swung far

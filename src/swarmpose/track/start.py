@@ -38,11 +38,13 @@ LEFT_RIGHT_PAIRS = tuple((j, int(SWAP15[j])) for j in range(len(JOINTS15)) if j 
 
 def keypoint_joints(seq: Any, frames: np.ndarray, *, views: list[int] | None = None,
                     threshold: float | None = None, relabel: bool = True) -> np.ndarray:
-    """World joints ``(T, 15, 3)`` mm triangulated from the keypoints of ``frames`` (NaN where < 2 views).
+    """World joints ``(T, 15, 3)`` mm triangulated from the keypoints of ``frames`` (NaN where < 2 views agree).
 
     Each view's left and right detections of a joint are first exchanged where that makes the views agree
     (:func:`swarmpose.triangulation.relabel_pairs`, where at least three views see both); then a weighted DLT,
-    and again without the observations whose residual exceeds ``threshold``.
+    and again without the observations whose residual exceeds ``threshold``. A joint that fewer than two views
+    still see after that is NaN: its views disagree, and the first pass's point between them is wrong (on the 8
+    shared clips' renders 115 of 117 such points lie over 100 mm from the truth, the median 200-450 mm).
 
     Parameters
     ----------
@@ -70,8 +72,7 @@ def keypoint_joints(seq: Any, frames: np.ndarray, *, views: list[int] | None = N
     pts = triangulate(cams, kp, w)
     r = residuals(cams, pts, kp)
     w2 = np.where(np.isfinite(r) & (r < thr), w, 0.0)
-    again = triangulate(cams, kp, w2)
-    return np.where(np.isfinite(again), again, pts)
+    return triangulate(cams, kp, w2)
 
 
 #: The range :func:`elbow_fraction` keeps its answer in.
