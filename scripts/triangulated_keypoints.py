@@ -4,8 +4,9 @@ For each sequence folder given (a sequence with a detector's keypoints and a gro
 ``scripts/detected_keypoints.py`` makes under its ``--work`` folder, ``<clip>-hybrid``), the frames the tracker
 uses at ``--fps`` are triangulated as the tracker triangulates them (``swarmpose.track.start.keypoint_joints``:
 each view's left and right detections exchanged where that makes three or more views agree, then a weighted
-DLT and again without the outlying observations) and as detected (``relabel=False``). Per sequence: the joints'
-median and mean 3D error (mm, joints seen by two views or more) and the share more than 100 mm off.
+DLT and again without the outlying observations, a joint that fewer than two views still see left out) and as
+detected (``relabel=False``). Per sequence: the joints' median and mean 3D error (mm, joints two views or more
+agree on) and the share more than 100 mm off.
 
 Run:  .venv/bin/python scripts/detected_keypoints.py --clips cmu_135_04_kick     (makes the copies)
       .venv/bin/python scripts/triangulated_keypoints.py results/detected-keypoints/*-hybrid [--fps 20] [--json]

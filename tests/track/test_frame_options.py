@@ -233,6 +233,8 @@ def test_a_joint_whose_views_disagree_is_not_triangulated(short_sequence: Path, 
         frames = np.arange(seq.n_frames)
         got, truth = keypoint_joints(seq, frames), np.asarray(seq.gt_joints)[frames]
         assert np.isnan(got[1, rw]).all()
+        plain = keypoint_joints(seq, frames, keep_disagreeing=True)  # the point between the two views
+        assert np.isfinite(plain[1, rw]).all() and np.linalg.norm(plain[1, rw] - truth[1, rw]) > 50.0
         ok = np.ones(got.shape[:2], bool)
         ok[1, rw] = False
         np.testing.assert_allclose(got[ok], truth[ok], atol=0.5)

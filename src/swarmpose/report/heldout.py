@@ -80,7 +80,7 @@ def heldout_scores(seq: Any, model: Any, params: np.ndarray, joints: np.ndarray,
     if has_keypoints(seq):
         dense, c = seq.marker_data.to_dense()
         kp, conf = dense[frames], c[frames]
-        base_joints = keypoint_joints(seq, frames, views=tracked_idx)
+        base_joints = keypoint_joints(seq, frames, views=tracked_idx, keep_disagreeing=True)
     out = []
     bgs = seq.backgrounds()
     for c in held:

@@ -37,7 +37,8 @@ LEFT_RIGHT_PAIRS = tuple((j, int(SWAP15[j])) for j in range(len(JOINTS15)) if j 
 
 
 def keypoint_joints(seq: Any, frames: np.ndarray, *, views: list[int] | None = None,
-                    threshold: float | None = None, relabel: bool = True) -> np.ndarray:
+                    threshold: float | None = None, relabel: bool = True,
+                    keep_disagreeing: bool = False) -> np.ndarray:
     """World joints ``(T, 15, 3)`` mm triangulated from the keypoints of ``frames`` (NaN where < 2 views agree).
 
     Each view's left and right detections of a joint are first exchanged where that makes the views agree
@@ -59,6 +60,9 @@ def keypoint_joints(seq: Any, frames: np.ndarray, *, views: list[int] | None = N
         the image diagonal.
     relabel : bool
         Exchange left and right detections where that makes the views agree (default); False: as detected.
+    keep_disagreeing : bool
+        Where the views disagree, keep the first pass's point, as a plain triangulation gives it (the baseline a
+        held-out camera scores the model against); default False: NaN.
     """
     dense, conf = seq.marker_data.to_dense()
     idx = np.asarray(frames, dtype=np.int64)
@@ -72,7 +76,8 @@ def keypoint_joints(seq: Any, frames: np.ndarray, *, views: list[int] | None = N
     pts = triangulate(cams, kp, w)
     r = residuals(cams, pts, kp)
     w2 = np.where(np.isfinite(r) & (r < thr), w, 0.0)
-    return triangulate(cams, kp, w2)
+    again = triangulate(cams, kp, w2)
+    return np.where(np.isfinite(again), again, pts) if keep_disagreeing else again
 
 
 #: The range :func:`elbow_fraction` keeps its answer in.
