@@ -62,6 +62,6 @@ def test_bad_input_is_refused():
         best_path(scores, joints[:, :1])
     with pytest.raises(ValueError, match="finite"):
         best_path(np.where(np.eye(4, 2) > 0, np.nan, scores), joints)
-    for w in (-0.1, float("nan"), True):
+    for w in (-0.1, float("nan"), True, "0.3"):
         with pytest.raises(ConfigError, match="weight"):
             best_path(scores, joints, w)

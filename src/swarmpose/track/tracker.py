@@ -105,7 +105,7 @@ class TrackConfig:
     subject: str = ""  # a subject file (swarmpose subject) instead of the sequence's own
     height_mm: float | None = None  # or a subject from this stature (body.anthropometry)
     views: str = ""  # "cam01,cam02": track with these cameras only (the others held out for scoring); "" all
-    backward: bool = False  # offline: track the frames again backwards, keep per frame the better pose (track.step)
+    backward: bool = False  # offline: track the frames again backwards (track.step), each frame's pose from either pass
     backward_path: float = DEFAULT_PATH_WEIGHT  # with backward: the two passes' poses chosen as one path over the
     #                                             frames, this weight on the joints' steps (track.path); 0: per frame
     smooth: float = 0.0  # offline: smooth the poses over time, Gaussian sigma in seconds (track.smooth); 0 off
@@ -618,7 +618,9 @@ def run_tracker(
     run has computed are read from it, the others computed and kept there (the results are the same); None:
     every frame computed.
     With ``config.backward`` the whole forward pass is followed by :func:`swarmpose.track.step.backward_pass`
-    (its own generator, spawned from the run's seed); ``RunResult.passes`` keeps the forward pass. A configuration
+    (its own generator, spawned from the run's seed), and each frame's pose is the forward pass's or the backward
+    pass's as :func:`swarmpose.track.path.best_path` chooses (``config.backward_path``); ``RunResult.passes`` keeps
+    both passes. A configuration
     with ``members > 1`` tracks the forward pass with an :class:`~swarmpose.track.ensemble.Ensemble` (the first
     member on the run's generator, the others on generators spawned from the run's seed after the backward pass's);
     the backward pass is one search.
