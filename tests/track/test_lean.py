@@ -13,8 +13,6 @@ import pytest
 from swarmpose.body.model import load_model
 from swarmpose.body.priors import HardPriors
 from swarmpose.errors import ConfigError
-from swarmpose.fitness import make_fitness
-from swarmpose.fitness.scene import demo_cameras, demo_frame
 from swarmpose.joints import JOINTS15
 from swarmpose.optim import registry
 from swarmpose.optim.variants import apply_variant
@@ -22,17 +20,10 @@ from swarmpose.track.lean import LeanSearch, lean_candidates
 
 
 @pytest.fixture(scope="module")
-def setup():
+def setup(bent_body_frame):
     """A body bent forward at the spine (0.5 rad), arms and legs bent a little, seen by 4 cameras."""
-    model = load_model("balan31")
-    pose = model.zero_pose()
-    pose[5] = 1000.0
-    for name, value in (("spine_flex", 0.5), ("l_shoulder_abd", 0.4), ("r_shoulder_flex", 0.6),
-                        ("r_elbow_flex", 0.5), ("l_hip_flex", 0.3), ("r_hip_flex", 0.2), ("l_knee_flex", 0.6)):
-        pose[model.param_index(name)] = value
-    frame = demo_frame(model, pose, demo_cameras(4, width=322, height=242), rng=np.random.default_rng(3))
-    fitness = make_fitness("silhouette_edge", model).bind(frame)
-    return model, pose, fitness
+    return bent_body_frame({"spine_flex": 0.5, "l_shoulder_abd": 0.4, "r_shoulder_flex": 0.6, "r_elbow_flex": 0.5,
+                            "l_hip_flex": 0.3, "r_hip_flex": 0.2, "l_knee_flex": 0.6})
 
 
 def search(**kw) -> LeanSearch:

@@ -22,7 +22,7 @@ import numpy as np
 
 from swarmpose.errors import ConfigError, ShapeError
 
-__all__ = ["DEFAULT_PATH_WEIGHT", "JOINT_STEP_MM", "best_path", "best_path_reference", "path_cost"]
+__all__ = ["DEFAULT_PATH_WEIGHT", "JOINT_STEP_MM", "best_path", "best_path_reference", "check_weight", "path_cost"]
 
 #: ``w``: the weight of the smoothness cost against the frame's fitness (the image fitness with keypoints
 #: lies in about [0, 1.2]). Measured on the 8 shared clips and their mirror images with 3 members and the
@@ -34,6 +34,13 @@ DEFAULT_PATH_WEIGHT = 0.3
 JOINT_STEP_MM = 100.0
 
 
+def check_weight(weight: float, name: str = "the path's weight") -> None:
+    """Raise ConfigError, naming ``name``, unless ``weight`` is a number >= 0."""
+    if (isinstance(weight, bool) or not isinstance(weight, int | float | np.number)
+            or not (np.isfinite(weight) and weight >= 0.0)):
+        raise ConfigError(f"{name} must be a weight >= 0 (0: each frame chooses alone), got {weight!r}")
+
+
 def _check(scores: np.ndarray, joints: np.ndarray, weight: float) -> tuple[np.ndarray, np.ndarray]:
     s = np.asarray(scores, dtype=np.float64)
     j = np.asarray(joints, dtype=np.float64)
@@ -43,9 +50,7 @@ def _check(scores: np.ndarray, joints: np.ndarray, weight: float) -> tuple[np.nd
         raise ShapeError(f"joints must be (T, K, J, 3) with (T, K) = {s.shape}, got {j.shape}")
     if not (np.isfinite(s).all() and np.isfinite(j).all()):
         raise ValueError("scores and joints must be finite")
-    if (isinstance(weight, bool) or not isinstance(weight, int | float | np.number)
-            or not (np.isfinite(weight) and weight >= 0.0)):
-        raise ConfigError(f"the path's smoothness weight must be a number >= 0, got {weight!r}")
+    check_weight(weight)
     return s, j
 
 

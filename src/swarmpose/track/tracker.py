@@ -50,7 +50,7 @@ from swarmpose.track.feature_store import FeatureStore
 from swarmpose.track.lean import LeanSearch, require_lean_parameters
 from swarmpose.track.motion import parse_motion
 from swarmpose.track.observation import IMAGE_FITNESS, MARKER_FITNESS, Prefetcher, frame_observation
-from swarmpose.track.path import DEFAULT_PATH_WEIGHT, best_path
+from swarmpose.track.path import DEFAULT_PATH_WEIGHT, best_path, check_weight
 from swarmpose.track.progress import RunProgress
 from swarmpose.track.recovery import LIMBS, Recovery
 from swarmpose.track.smooth import smooth_params
@@ -121,10 +121,7 @@ class TrackConfig:
             object.__setattr__(self, "max_frames", int(n))
         if self.subject and self.height_mm is not None:
             raise ConfigError("give a subject file or a height, not both")
-        bp = self.backward_path
-        if isinstance(bp, bool) or not isinstance(bp, int | float | np.number) or not (np.isfinite(bp) and bp >= 0):
-            raise ConfigError(f"backward_path must be a weight >= 0 (0: the passes' poses chosen frame by frame), "
-                              f"got {bp!r}")
+        check_weight(self.backward_path, "backward_path")
         if isinstance(self.smooth, bool) or not (np.isfinite(self.smooth) and 0.0 <= self.smooth <= 10.0):
             raise ConfigError(f"smooth must be a time in seconds, 0 (off) to 10, got {self.smooth!r}")
         if self.height_mm is not None:
