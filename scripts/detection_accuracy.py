@@ -285,7 +285,7 @@ def main() -> None:
 
     from swarmpose.detection.mediapipe_pose import import_mediapipe_pose
     from swarmpose.errors import ConfigError
-    from swarmpose.track.tracker import source_revision
+    from swarmpose.track.provenance import source_revision
 
     try:
         _, mp_version = import_mediapipe_pose()

@@ -257,7 +257,7 @@ def test_demo_names_other_code_when_it_reuses_a_folder(tmp_path: Path, monkeypat
     message says so (old numbers must not pass for the code's)."""
     from swarmpose.cli import demo as demo_module
 
-    monkeypatch.setattr("swarmpose.track.tracker.source_revision", lambda: "b" * 40)
+    monkeypatch.setattr("swarmpose.track.provenance.source_revision", lambda: "b" * 40)
     (tmp_path / "config.json").write_text(json.dumps({"versions": {"swarmpose_git": "a" * 40}}))
     assert demo_module._made_by_other_code(tmp_path) == f"; they were tracked by source {'a' * 12}, this is {'b' * 12}"
     (tmp_path / "config.json").write_text(json.dumps({"versions": {"swarmpose_git": "b" * 40}}))

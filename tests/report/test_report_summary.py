@@ -260,7 +260,7 @@ def test_run_folders_beyond_the_configured_runs_are_left_out(results_copy: Path)
 
 def test_a_wrong_sequence_given_explicitly_is_an_error_not_a_note(results_copy: Path, fake_results, tmp_path: Path):
     from swarmpose.errors import DataError
-    from swarmpose.track.tracker import sequence_identity
+    from swarmpose.track.provenance import sequence_identity
 
     with pytest.raises(DataError, match="no sequence folder there"):
         make_report(results_copy, sequence=tmp_path / "nonexist")

@@ -310,7 +310,7 @@ def test_constant_velocity_centres_the_search_one_step_on(short_sequence, tmp_pa
 def test_sequence_identity_ignores_time_version_and_paths_but_not_the_data(short_sequence, tmp_path):
     import shutil
 
-    from swarmpose.track.tracker import sequence_identity
+    from swarmpose.track.provenance import sequence_identity
 
     copy = tmp_path / "moved"
     shutil.copytree(short_sequence, copy)
@@ -411,7 +411,7 @@ def test_a_resumed_folder_keeps_its_history(short_sequence, tmp_path):
     sequence paths; the versions name the source revision when it is a git checkout."""
     import shutil
 
-    from swarmpose.track.tracker import source_revision
+    from swarmpose.track.provenance import source_revision
 
     track_runs(short_sequence, TrackConfig(fps=20.0), 1, tmp_path / "r", workers=1, progress=False)
     first = json.loads((tmp_path / "r" / "config.json").read_text())

@@ -20,7 +20,7 @@ app = typer.Typer(
 def _version(value: bool) -> None:
     if value:
         from swarmpose import __version__
-        from swarmpose.track.tracker import source_revision
+        from swarmpose.track.provenance import source_revision
 
         rev = source_revision()
         typer.echo(f"swarmpose {__version__}" + (f" (git {rev})" if rev else ""))

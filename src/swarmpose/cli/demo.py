@@ -85,7 +85,7 @@ def _made_by_other_code(out: Path) -> str:
     """``"; they were tracked by source X, this is Y"`` when the folder's config names other code, else ``""``."""
     import json
 
-    from swarmpose.track.tracker import source_revision
+    from swarmpose.track.provenance import source_revision
 
     try:
         made = json.loads((out / "config.json").read_text()).get("versions", {}).get("swarmpose_git")

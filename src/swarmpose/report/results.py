@@ -205,7 +205,7 @@ class Results:
             p = Path(override)
             if not (p / "sequence.json").is_file():
                 raise DataError(f"--sequence {str(p)!r}: no sequence folder there (no sequence.json)")
-            from swarmpose.track.tracker import sequence_identity
+            from swarmpose.track.provenance import sequence_identity
 
             tracked = self.config.get("sequence_identity")
             if tracked is not None and sequence_identity(p) != tracked:

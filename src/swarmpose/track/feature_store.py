@@ -12,7 +12,7 @@ Layout: ``ROOT/<sequence folder name>-<key>/`` with ``store.json`` (what the key
 per frame, ``<frame>.bits``: the magic ``SPF1`` and the zlib-compressed ``numpy.packbits`` of the
 ``(2, C, H, W)`` maps (silhouettes, edge pixels); a 644x484 four-view frame takes ~20 kB. The key hashes
 everything the maps depend on: the sequence's identity and its observation files' identities
-(:func:`swarmpose.track.tracker.sequence_identity`, :func:`~swarmpose.track.tracker.observation_identity`:
+(:func:`swarmpose.track.provenance.sequence_identity`, :func:`~swarmpose.track.provenance.observation_identity`:
 images edited in place make a new key), the tracked views, the feature options, the source of
 ``swarmpose.features`` and OpenCV's version. Files are written to a temporary name and renamed, so runs in
 parallel processes may share a store; a file that does not read back whole is computed again and replaced.
@@ -31,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from swarmpose.errors import DataError
+from swarmpose.track.provenance import observation_identity, sequence_identity
 
 __all__ = ["FeatureStore", "STORE_FORMAT"]
 
@@ -65,8 +66,6 @@ class FeatureStore:
             ``root`` (or the store's folder) cannot be created or written.
         """
         import cv2
-
-        from swarmpose.track.tracker import observation_identity, sequence_identity
 
         observations = observation_identity(sequence_path)
         if observations is None:
