@@ -165,6 +165,13 @@ def test_refined_height_variant(model):
     on = apply_variant(base, "height=silhouettes+recovery=0.01")
     assert on.silhouette_height and on.recovery["threshold"] == 0.01
     assert not apply_variant(on, "height=off").silhouette_height
+    kp = apply_variant(on, "height=keypoints")
+    assert kp.silhouette_height and kp.keypoint_height and not on.keypoint_height
+    off = apply_variant(kp, "height=off")
+    assert not off.silhouette_height and not off.keypoint_height
+    assert not apply_variant(kp, "height=silhouettes").keypoint_height
+    default = optim.get("refined-heading", model=model, fps=20.0)
+    assert default.silhouette_height and default.keypoint_height
     for bad, cfg in (("height=yes", base), ("height=silhouettes", optim.get("sppso", model=model, fps=20.0))):
         with pytest.raises(ConfigError, match="height=silhouettes"):
             apply_variant(cfg, bad)

@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+import dataclasses
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from swarmpose.body.model import load_model
 from swarmpose.track.path import best_path
 from swarmpose.track.tracker import TrackConfig, prepare_track, run_tracker
 
@@ -192,7 +196,6 @@ def test_the_silhouettes_centre_rises_with_the_body_and_moves_the_predicted_heig
     """The cone model drawn at two heights 120 mm apart: the triangulated centre of its silhouettes rises by about
     as much, and a search with ``silhouette_height`` moves its prediction of the root height by that rise, only
     from a neighbouring position (either direction) and never on the first frame searched."""
-    from swarmpose.body.model import load_model
     from swarmpose.fitness import make_fitness
     from swarmpose.fitness.scene import demo_cameras, demo_frame
     from swarmpose.track.motion import parse_motion
@@ -231,6 +234,38 @@ def test_the_silhouettes_centre_rises_with_the_body_and_moves_the_predicted_heig
         fit.bind(demo_frame(model, x, cams, inflate=1.0, clutter=0, noise=0.0))
         rises.append(search._rise(20 + i))
     assert rises == [0.0, 0.0]  # a rise within the dead zone does not move the prediction
+
+
+def test_with_keypoint_height_the_trunks_keypoints_give_the_rise():
+    """With ``keypoint_height`` the rise is the mean rise of the hips' and shoulders' triangulated keypoints between
+    the position searched before and this one (either direction, no dead zone: a 4 mm rise counts); a frame missing
+    one of them falls back to the silhouettes' rise (none known here: 0); an arm raised alone moves nothing."""
+    from swarmpose.joints import JOINT_INDEX as J
+    from swarmpose.track.step import FrameSearch
+
+    model = load_model("balan31")
+    x = model.zero_pose()
+    x[model.param_index("pelvis_tz")] = 950.0
+    kp = np.repeat(model.joints15(x[None]), 6, axis=0)
+    kp[1] += [0.0, 0.0, 40.0]  # the body up 40 mm
+    kp[2] = kp[1] + [0.0, 0.0, 4.0]
+    kp[3] = kp[2]
+    kp[3, J["r_wrist"]] += [0.0, 0.0, 300.0]  # an arm raised: not the trunk
+    kp[3, J["r_elbow"]] += [0.0, 0.0, 150.0]
+    kp[4] = kp[3]
+    kp[4, J["l_hip"]] = np.nan
+    kp[5] = kp[3]
+    fitness = SimpleNamespace(features=None)  # no silhouettes: their rise is unknown
+    search = FrameSearch(model=model, algo=None, fitness=fitness, motion=None, motion_mask=None, constraint=None,
+                         timer=None, extra_options={}, silhouette_height=True, keypoint_height=True, kp_joints=kp)
+    rises = [search._rise(i) for i in (0, 1, 2, 3, 4, 5, 3, 2, 1, 0)]
+    assert rises[0] == 0.0  # nothing searched before
+    assert rises[1] == pytest.approx(40.0) and rises[2] == pytest.approx(4.0) and rises[3] == pytest.approx(0.0)
+    assert rises[4] == 0.0 and rises[5] == 0.0  # a hip missing on position 4, before or now
+    assert rises[6] == 0.0  # 3 is not next to 5
+    assert rises[7] == pytest.approx(0.0) and rises[8] == pytest.approx(-4.0) and rises[9] == pytest.approx(-40.0)
+    without = dataclasses.replace(search, keypoint_height=False)
+    assert [without._rise(i) for i in (0, 1)] == [0.0, 0.0]  # the silhouettes' rise alone: unknown here
 
 
 @settings(max_examples=40, deadline=None)

@@ -62,15 +62,19 @@ def test_the_default_weighs_keypoints_where_the_sequence_has_them(short_sequence
     # without keypoints: refined-limbs with the turn search, pose for pose
     np.testing.assert_array_equal(_track(short_sequence, "refined-heading", ik_ran=False),
                                   _track(short_sequence, "refined-limbs", "turn=on"))
-    # with them: the term in every search, as the run's own --fitness-options would put it there, and the IK
+    # with them: the term in every search, as the run's own --fitness-options would put it there, the IK, and the
+    # root's height moved by the trunk's keypoints
     heading = _track(keypoint_sequence, "refined-heading", ik_ran=True)
-    np.testing.assert_array_equal(heading, _track(keypoint_sequence, "refined-limbs", "turn=on+keypoint_ik=on",
+    assert not np.array_equal(heading, _track(keypoint_sequence, "refined-heading", "height=silhouettes"))
+    np.testing.assert_array_equal(heading, _track(keypoint_sequence, "refined-limbs",
+                                                  "turn=on+keypoint_ik=on+height=keypoints",
                                                   f"keypoints={FRAME_KEYPOINT_WEIGHT:g},keypoint_elbow={KEYPOINT_ELBOW},"
                                                   f"keypoint_joints={KEYPOINT_JOINTS}"))
     assert not np.array_equal(heading, _track(keypoint_sequence, "refined-limbs", "turn=on+keypoint_ik=on"))
     # the run's own options go over the configuration's: keypoints=0 turns the term off
     np.testing.assert_array_equal(_track(keypoint_sequence, "refined-heading", options="keypoints=0"),
-                                  _track(keypoint_sequence, "refined-limbs", "turn=on+keypoint_ik=on", "keypoints=0"))
+                                  _track(keypoint_sequence, "refined-limbs", "turn=on+keypoint_ik=on+height=keypoints",
+                                         "keypoints=0"))
 
 
 def test_the_keypoint_terms_scale_and_swaps_reach_the_searches(keypoint_sequence: Path):

@@ -403,6 +403,10 @@ class RefinedConfig(OptimizerConfig):
     silhouette_height : bool
         The tracker moves the predicted root height by the rise of the silhouettes' triangulated centre since
         the frame before (an image fitness's observation); read by the tracker only.
+    keypoint_height : bool
+        With ``silhouette_height``, where the sequence has keypoints: the rise is that of the trunk's triangulated
+        keypoints (the hips' and shoulders' mean height, :data:`swarmpose.track.step.RISE_JOINTS`) where both
+        frames have them, the silhouettes' elsewhere. Read by the tracker only.
     turn_search : Mapping
         Settings of the tracker's search of the body's heading (:mod:`swarmpose.track.turn`; :data:`TURN_SEARCH`),
         read by the tracker only; empty: none.
@@ -437,6 +441,7 @@ class RefinedConfig(OptimizerConfig):
     keypoint_ik_polish: int = 0
     keypoint_proposals: float = 0.0
     silhouette_height: bool = False
+    keypoint_height: bool = False
     turn_search: Mapping[str, Any] = field(default_factory=dict)
     lean_search: Mapping[str, Any] = field(default_factory=dict)
     heading_speed: float | None = None
@@ -666,12 +671,13 @@ def _refined_heading(model: Any, fps: float) -> RefinedConfig:
     the body model's coupled limits among the hard priors (the shoulders' second branch of angles left out), and,
     where the sequence carries a detector's keypoints, the keypoint term (weight :data:`FRAME_KEYPOINT_WEIGHT`, the
     detector's elbows where :data:`KEYPOINT_ELBOW` puts them, the joints weighed as :data:`KEYPOINT_JOINTS` says) in
-    every search of a frame and the keypoint IK after them. On a sequence without keypoints it is ``refined-limbs
-    --variant turn=on+coupled_limits=on``, pose for pose."""
+    every search of a frame, the keypoint IK after them, and the predicted root height moved by the rise of the
+    trunk's keypoints instead of the silhouettes' (``keypoint_height``). On a sequence without keypoints it is
+    ``refined-limbs --variant turn=on+coupled_limits=on``, pose for pose."""
     return dataclasses.replace(_refined_limbs(model, fps), name="refined-heading", turn_search=TURN_SEARCH,
                                frame_options={"keypoints": FRAME_KEYPOINT_WEIGHT, "keypoint_elbow": KEYPOINT_ELBOW,
                                               "keypoint_joints": KEYPOINT_JOINTS},
-                               keypoint_ik=True, coupled_limits=True)
+                               keypoint_ik=True, keypoint_height=True, coupled_limits=True)
 
 
 #: Weight of the keypoint term in ``refined-keypoints``, chosen on the shared recording (cam04 held out, 20 fps,

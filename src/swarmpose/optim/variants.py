@@ -33,7 +33,8 @@ def apply_variant(config: Any, variant: str) -> Any:
       in turn (with ``recovery=all`` each limb is searched every 4/K frames); ``recovery_search=SxR``: each searched limb's
       box search asks S poses in each of R rounds (default 100 x 5), ``recovery_refine=B``: then B pattern-search
       evaluations (default 100); ``height=silhouettes``: the predicted root height moves by the rise of
-      the silhouettes' triangulated centre since the frame before (``height=off``: not); ``turn=on``: the body's
+      the silhouettes' triangulated centre since the frame before, ``height=keypoints``: by the rise of the trunk's
+      triangulated keypoints where the sequence has them, else as ``silhouettes`` (``height=off``: not); ``turn=on``: the body's
       heading searched again on every frame (the pose and its pelvis alone turned, the best polished:
       ``swarmpose.track.turn``, 318 evaluations); ``turn_margin=M``: a turned pose kept only when it scores
       more than M above the frame's pose; ``lean=on``: the trunk's lean searched again on every frame, the pelvis
@@ -59,8 +60,14 @@ def apply_variant(config: Any, variant: str) -> Any:
             config = apply_variant(config, part)
         return config
     head = variant.partition("=")[0].strip()
-    if head in ("height", "turn", "lean", "keypoint_ik", "coupled_limits"):
-        field, on = {"height": ("silhouette_height", "silhouettes"), "turn": ("turn_search", "on"),
+    if head == "height":
+        value = variant.partition("=")[2].strip()
+        if not hasattr(config, "silhouette_height") or value not in ("silhouettes", "keypoints", "off"):
+            raise ConfigError(f"variant {variant!r}: expected height=silhouettes, height=keypoints or height=off on a "
+                              f"refined configuration ({config.name!r})")
+        return dataclasses.replace(config, silhouette_height=value != "off", keypoint_height=value == "keypoints")
+    if head in ("turn", "lean", "keypoint_ik", "coupled_limits"):
+        field, on = {"turn": ("turn_search", "on"),
                      "lean": ("lean_search", "on"), "keypoint_ik": ("keypoint_ik", "on"),
                      "coupled_limits": ("coupled_limits", "on")}[head]
         value = variant.partition("=")[2].strip()
