@@ -49,13 +49,15 @@ from swarmpose.track.start import (
 )
 from swarmpose.track.turn import keypoint_turn
 
-__all__ = ["FrameSearch", "StepResult", "recentre", "backward_pass", "BackwardResult", "mix_limbs", "RISE_DEAD_ZONE_MM"]
+__all__ = ["FrameSearch", "StepResult", "recentre", "backward_pass", "BackwardResult", "mix_limbs", "RISE_DEAD_ZONE_MM",
+           "RISE_JOINTS"]
 
 #: The joints whose triangulated keypoints' mean height gives the body's rise with ``keypoint_height``: the hips and the
-#: shoulders. Measured on the 8 synthetic clips at 20 fps (the detector's keypoints, all 4 views), the mean error of
-#: the predicted step of the pelvis height is 1.0-3.4 mm per frame with them against 1.1-16.9 with the silhouettes'
-#: centre (the jog, whose pelvis bobs up to 43 mm a frame: 3.4 against 16.9; cmu_131_01's crouch: 2.7 against 6.2;
-#: the kick, whose raised leg lifts the silhouettes' centre: 2.2 against 5.1).
+#: shoulders (a left/right swap leaves their mean as it is). ``scripts/rise_evidence.py`` on the 8 synthetic clips and
+#: their mirror images at 20 fps (the detector's keypoints, all 4 views): the mean error of the predicted step of the
+#: pelvis height is 1.0-3.5 mm per frame with them against 1.1-17.0 with the silhouettes' centre (the jog, whose pelvis
+#: bobs up to 43 mm a frame: 3.4 against 16.9; cmu_131_01's crouch: 2.7 against 6.2; the kick, whose raised leg lifts
+#: the silhouettes' centre: 2.2 against 5.1).
 RISE_JOINTS = tuple(JOINT_INDEX[n] for n in ("l_hip", "r_hip", "l_shoulder", "r_shoulder"))
 
 #: A rise of the silhouettes' centre smaller than this (mm per frame) does not move the predicted root height, and
