@@ -38,6 +38,8 @@ def source_revision() -> str | None:
 
 
 def versions() -> dict[str, str]:
+    """The versions a results folder's ``config.json`` records: swarmpose (and its git commit, where known), Python,
+    numpy, scipy, numba, torch where the torch backend loaded it, the machine and its CPU count."""
     import numba
     import scipy
 
