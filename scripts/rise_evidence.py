@@ -22,10 +22,9 @@ import json
 
 import numpy as np
 
-from swarmpose.features import silhouette
 from swarmpose.io.sequence import open_sequence
 from swarmpose.joints import JOINT_INDEX
-from swarmpose.track.start import centre_of_silhouettes, has_keypoints, keypoint_joints
+from swarmpose.track.start import has_keypoints, keypoint_joints, silhouette_centre
 from swarmpose.track.step import RISE_DEAD_ZONE_MM, RISE_JOINTS
 
 
@@ -37,16 +36,10 @@ def rise_errors(path: str, fps: float) -> dict:
             raise SystemExit(f"{path}: needs a ground truth and a detector's keypoints")
         frames = seq.subsample(fps)
         truth = np.asarray(seq.gt_joints, dtype=np.float64)[frames][:, JOINT_INDEX["pelvis"], 2]
-        backgrounds = seq.backgrounds()
-        centres = []
-        for k in frames:
-            stored = seq.silhouettes(int(k))
-            if stored is None:
-                images = seq.images(int(k))
-                stored = np.stack([silhouette(images[c], backgrounds[c]) for c in range(seq.n_views)])
-            c = centre_of_silhouettes(stored, list(seq.cameras))
-            centres.append(np.full(3, np.nan) if c is None else c)
-        kp = keypoint_joints(seq, frames, views=list(range(seq.n_views)))
+        views = list(range(seq.n_views))
+        centres = [silhouette_centre(seq, int(k), views) for k in frames]
+        centres = [np.full(3, np.nan) if c is None else c for c in centres]
+        kp = keypoint_joints(seq, frames, views=views)
     finally:
         seq.close()
     step = np.diff(truth)

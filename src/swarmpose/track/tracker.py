@@ -552,7 +552,8 @@ def run_tracker(
     kp_joints = None  # the tracked views' triangulated keypoints, for the configurations that fit them per frame
     fit_keypoints = bool(getattr(algo, "keypoint_ik", False))
     proposals = float(getattr(algo, "keypoint_proposals", 0.0))
-    if (fit_keypoints or proposals > 0 or getattr(algo, "keypoint_height", False)) and has_keypoints(seq):
+    keypoint_height = bool(getattr(algo, "keypoint_height", False))
+    if (fit_keypoints or proposals > 0 or keypoint_height) and has_keypoints(seq):
         kp_joints = keypoint_joints(seq, setup.frame_indices, views=views)
     elbow = None  # keypoint_elbow=auto: the detector's elbows on the model's upper arms, measured on this sequence
     if extra_options.get("keypoint_elbow") == "auto":
@@ -587,7 +588,7 @@ def run_tracker(
                          kp_joints=kp_joints, search_start=setup.search_start,
                          silhouette_height=bool(getattr(algo, "silhouette_height", False))
                          and cfg.fitness_kind in IMAGE_FITNESS,
-                         keypoint_height=bool(getattr(algo, "keypoint_height", False)),
+                         keypoint_height=keypoint_height,
                          turn=TurnSearch.from_settings(getattr(algo, "turn_search", {}))
                          if cfg.fitness_kind in IMAGE_FITNESS else None,
                          lean=LeanSearch.from_settings(getattr(algo, "lean_search", {}))
