@@ -20,8 +20,14 @@ fitness is the refinement's, do the two basins' tops differ, and where does each
 truth's basin ends higher and near the truth a search could find it; where the two end within a few thousandths of
 each other, or the truth's drifts off, the evidence cannot tell them apart.
 
+``--limb-polish N``: on each frame with a miss, a pattern search of N evaluations over the missed limb's parameters
+alone (the rest of the tracked pose held, as the tracker's limb searches hold it) from the tracked limb and from the
+truth's limb: do the two tops differ, and would the tracker's silhouette guard let the truth's replace the tracked
+one (its silhouette overlap term not lower)? Where the limb's own tops lie within a few thousandths, a limb search
+cannot tell the truth's place from the tracked one.
+
 Run:  .venv/bin/python scripts/miss_evidence.py results/detected-keypoints/cmu_131_01_walk-refined-heading
-          [more folders] [--runs 3] [--limit 100] [--polish 1500] [--json]
+          [more folders] [--runs 3] [--limit 100] [--polish 1500] [--limb-polish 200] [--json]
 """
 
 from __future__ import annotations
@@ -59,7 +65,33 @@ def polished(fitness, model, algo, constraint, x: np.ndarray, options: dict, bud
     return np.asarray(found.x), float(found.score)
 
 
-def clip_evidence(results: Path, runs: int, limit: float, polish: int = 0) -> dict:
+def limb_tops(fitness, model, algo, constraint, x: np.ndarray, x_truth: np.ndarray, group: np.ndarray,
+              options: dict, budget: int) -> dict:
+    """The tops of the tracked limb's basin and of the truth's, each a pattern search of ``budget`` evaluations over
+    the limb's parameters ``group`` alone from ``x`` and ``x_truth``: their scores and silhouette overlap terms."""
+    step = np.zeros(model.n_params)
+    step[group] = algo.refine_step * np.asarray(algo.sigma, dtype=np.float64)[group]
+    tops = []
+    for start in (x, x_truth):
+        ps = PatternSearch(np.asarray(start, dtype=np.float64), step, budget, lower=model.lower, upper=model.upper,
+                           constraint=constraint)
+        found = optimize(ps, lambda poses: fitness.evaluate(poses, options))
+        tops.append((np.asarray(found.x), float(found.score)))
+    pair = np.stack([tops[0][0], tops[1][0]])
+    sil = fitness.evaluate(pair, {**options, "keypoints": 0.0, "terms": "silhouette"})
+    return {"poses": pair, "tracked_score": tops[0][1], "truth_score": tops[1][1],
+            "silhouette_difference": float(sil[1] - sil[0])}
+
+
+def tops_summary(d: np.ndarray, tops: list[dict], evaluations: int) -> dict:
+    """The truth's top less the tracked one's, ``d``, summed up, beside the missed joints' errors at both tops."""
+    return {"evaluations": evaluations, "truth_higher": float(np.mean(d > 0)), "median_difference": float(np.median(d)),
+            "median_abs_difference": float(np.median(np.abs(d))),
+            "truth_error_mm_median": float(np.median([t["truth_error_mm"] for t in tops])),
+            "tracked_error_mm_median": float(np.median([t["tracked_error_mm"] for t in tops]))}
+
+
+def clip_evidence(results: Path, runs: int, limit: float, polish: int = 0, limb_polish: int = 0) -> dict:
     config = read_json_object(results / "config.json")
     fields = {f.name for f in dataclasses.fields(TrackConfig)}
     cfg = TrackConfig(**{k: v for k, v in config.items() if k in fields and k != "fitness_kind"})
@@ -108,6 +140,7 @@ def clip_evidence(results: Path, runs: int, limit: float, polish: int = 0) -> di
                             truth_tops[key]]
                     top_err = np.linalg.norm(model.joints15(np.stack([tops[0][0], tops[1][0]]))
                                              - setup.gt_joints[t][None], axis=-1)
+                limb_cache: dict[str, dict] = {}
                 for joint in missed:
                     x = params[t].copy()
                     x_truth = x.copy()
@@ -128,6 +161,16 @@ def clip_evidence(results: Path, runs: int, limit: float, polish: int = 0) -> di
                                  "truth_limb_error_mm": moved,
                                  "truth_limb_minus_tracked": {k: float(v[1] - v[0]) for k, v in score.items()},
                                  "truth_pose_minus_tracked": float(whole - tracked)})
+                    if limb_polish > 0:
+                        if LIMB_OF[joint] not in limb_cache:
+                            limb_cache[LIMB_OF[joint]] = limb_tops(fitness, model, algo, constraint, x, x_truth, group,
+                                                                   run_options, limb_polish)
+                        lt = limb_cache[LIMB_OF[joint]]
+                        e = np.linalg.norm(model.joints15(lt["poses"])[:, j] - setup.gt_joints[t, j][None], axis=-1)
+                        rows[-1]["limb_polished"] = {"limb": LIMB_OF[joint], "tracked_score": lt["tracked_score"],
+                                                     "truth_score": lt["truth_score"],
+                                                     "silhouette_difference": lt["silhouette_difference"],
+                                                     "tracked_error_mm": float(e[0]), "truth_error_mm": float(e[1])}
                     if tops is not None:
                         rows[-1]["polished"] = {"tracked_score": tops[0][1], "truth_score": tops[1][1],
                                                 "tracked_error_mm": float(top_err[0, j]),
@@ -153,13 +196,13 @@ def clip_evidence(results: Path, runs: int, limit: float, polish: int = 0) -> di
             frames = {t: {"best_tracked_top": b[0], "truth_top": b[1], "difference": b[1] - b[0]}
                       for t, b in sorted(best.items())}
             out["polished_frames"] = frames
-            out["polished"] = {"evaluations": polish, "truth_higher": float(np.mean(d > 0)),
-                               "median_difference": float(np.median(d)),
-                               "median_abs_difference": float(np.median(np.abs(d))),
-                               "truth_error_mm_median": float(np.median([r["polished"]["truth_error_mm"]
-                                                                         for r in rows])),
-                               "tracked_error_mm_median": float(np.median([r["polished"]["tracked_error_mm"]
-                                                                           for r in rows]))}
+            out["polished"] = tops_summary(d, [r["polished"] for r in rows], polish)
+        if limb_polish > 0:  # one entry per (run, frame, limb): a limb with two missed joints counts once
+            limbs = {(r["run"], r["position"], r["limb_polished"]["limb"]): r["limb_polished"] for r in rows}
+            d = np.array([v["truth_score"] - v["tracked_score"] for v in limbs.values()])
+            guard = np.array([v["silhouette_difference"] >= 0 for v in limbs.values()])
+            out["limb_polished"] = {**tops_summary(d, [r["limb_polished"] for r in rows], limb_polish),
+                                    "limb_frames": len(limbs), "truth_higher_and_guard": float(np.mean((d > 0) & guard))}
     out["rows"] = rows
     return out
 
@@ -171,9 +214,11 @@ def main() -> None:
     ap.add_argument("--limit", type=float, default=100.0, help="mm: a joint farther off is a miss")
     ap.add_argument("--polish", type=int, default=0, metavar="N",
                     help="pattern-search evaluations from the tracked and the IK pose on each frame with a miss")
+    ap.add_argument("--limb-polish", type=int, default=0, metavar="N",
+                    help="pattern-search evaluations over the missed limb alone from the tracked and the truth's limb")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
-    clips = [clip_evidence(r, args.runs, args.limit, args.polish) for r in args.results]
+    clips = [clip_evidence(r, args.runs, args.limit, args.polish, args.limb_polish) for r in args.results]
     if args.json:
         print(json.dumps({"clips": clips}))
         return
@@ -196,6 +241,13 @@ def main() -> None:
                   f"from the truth, {p['tracked_error_mm_median']:.0f} mm from the tracked pose")
             diffs = " ".join(f"{t}: {v['difference']:+.4f}" for t, v in c["polished_frames"].items())
             print(f"{'':40s} per frame, the truth's top less the best run's: {diffs}")
+        if "limb_polished" in c:
+            p = c["limb_polished"]
+            print(f"{'':40s} the limb alone ({p['evaluations']} evaluations from each), {p['limb_frames']} missed limbs: "
+                  f"the truth's limb's top higher {100 * p['truth_higher']:.0f} % (with the silhouette term not lower "
+                  f"{100 * p['truth_higher_and_guard']:.0f} %), by {p['median_difference']:+.4f} (median; |.| "
+                  f"{p['median_abs_difference']:.4f}); the missed joint then {p['truth_error_mm_median']:.0f} mm off "
+                  f"from the truth, {p['tracked_error_mm_median']:.0f} mm from the tracked limb")
 
 
 if __name__ == "__main__":

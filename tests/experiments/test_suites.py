@@ -177,6 +177,23 @@ def test_refined_height_variant(model):
             apply_variant(cfg, bad)
 
 
+def test_refined_head_variant(model):
+    from swarmpose.optim.registry import HEAD_SEARCH
+
+    base = optim.get("refined-limbs", model=model, fps=20.0)
+    assert base.head_search == 0
+    on = apply_variant(base, "head=50")
+    assert on.head_search == 50 and on.evals_per_frame == base.evals_per_frame  # only with keypoints: not counted
+    assert optim.get("refined-heading", model=model, fps=20.0).head_search == HEAD_SEARCH > 0
+    assert apply_variant(on, "head=off").head_search == 0 and apply_variant(on, "head=0").head_search == 0
+    for bad, cfg in (("head=x", base), ("head=-5", base), ("head=2.5", base),
+                     ("head=50", optim.get("sppso", model=model, fps=20.0))):
+        with pytest.raises(ConfigError, match="head=B"):
+            apply_variant(cfg, bad)
+    with pytest.raises(ConfigError, match="head_search"):
+        dataclasses.replace(base, head_search=-1)
+
+
 def test_refined_recovery_of_every_limb_with_the_frames_fitness(model):
     base = optim.get("refined", model=model, fps=20.0)
     v = apply_variant(base, "recovery=all+recovery_terms=fitness")

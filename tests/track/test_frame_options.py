@@ -52,7 +52,7 @@ def _track(path: Path, algo: str, variant: str = "", options: str = "", *, ik_ra
 def test_the_default_weighs_keypoints_where_the_sequence_has_them(short_sequence: Path, keypoint_sequence: Path):
     from swarmpose.body.model import load_model
     from swarmpose.optim import registry
-    from swarmpose.optim.registry import FRAME_KEYPOINT_WEIGHT, KEYPOINT_ELBOW, KEYPOINT_JOINTS
+    from swarmpose.optim.registry import FRAME_KEYPOINT_WEIGHT, HEAD_SEARCH, KEYPOINT_ELBOW, KEYPOINT_JOINTS
     from swarmpose.track.start import has_keypoints
 
     with open_sequence(short_sequence) as plain, open_sequence(keypoint_sequence) as kp:
@@ -62,19 +62,20 @@ def test_the_default_weighs_keypoints_where_the_sequence_has_them(short_sequence
     # without keypoints: refined-limbs with the turn search, pose for pose
     np.testing.assert_array_equal(_track(short_sequence, "refined-heading", ik_ran=False),
                                   _track(short_sequence, "refined-limbs", "turn=on"))
-    # with them: the term in every search, as the run's own --fitness-options would put it there, the IK, and the
-    # root's height moved by the trunk's keypoints
+    # with them: the term in every search, as the run's own --fitness-options would put it there, the IK, the
+    # root's height moved by the trunk's keypoints, and the head searched on its own
     heading = _track(keypoint_sequence, "refined-heading", ik_ran=True)
     assert not np.array_equal(heading, _track(keypoint_sequence, "refined-heading", "height=silhouettes"))
+    assert not np.array_equal(heading, _track(keypoint_sequence, "refined-heading", "head=off"))
     np.testing.assert_array_equal(heading, _track(keypoint_sequence, "refined-limbs",
-                                                  "turn=on+keypoint_ik=on+height=keypoints",
+                                                  f"turn=on+keypoint_ik=on+height=keypoints+head={HEAD_SEARCH}",
                                                   f"keypoints={FRAME_KEYPOINT_WEIGHT:g},keypoint_elbow={KEYPOINT_ELBOW},"
                                                   f"keypoint_joints={KEYPOINT_JOINTS}"))
     assert not np.array_equal(heading, _track(keypoint_sequence, "refined-limbs", "turn=on+keypoint_ik=on"))
     # the run's own options go over the configuration's: keypoints=0 turns the term off
     np.testing.assert_array_equal(_track(keypoint_sequence, "refined-heading", options="keypoints=0"),
-                                  _track(keypoint_sequence, "refined-limbs", "turn=on+keypoint_ik=on+height=keypoints",
-                                         "keypoints=0"))
+                                  _track(keypoint_sequence, "refined-limbs",
+                                         f"turn=on+keypoint_ik=on+height=keypoints+head={HEAD_SEARCH}", "keypoints=0"))
 
 
 def test_the_keypoint_terms_scale_and_swaps_reach_the_searches(keypoint_sequence: Path):
@@ -280,3 +281,9 @@ def test_miss_evidence_finds_a_moved_arm_and_the_evidence_for_the_truths(keypoin
     assert polished["polished"]["truth_error_mm_median"] < 20 < polished["polished"]["tracked_error_mm_median"]
     assert set(polished["polished_frames"]) == {r["position"] for r in found["rows"]}
     assert all(v["difference"] > 0 for v in polished["polished_frames"].values())
+    # the limb alone: from the swung arm a short search of the arm stays in its basin, the truth's arm tops it (the
+    # silhouettes agreeing) and stays near the truth; one entry per frame's missed arm, not per missed joint
+    limb = script.clip_evidence(out, 1, 100.0, limb_polish=40)["limb_polished"]
+    assert limb["limb_frames"] == len({r["position"] for r in found["rows"]})
+    assert limb["truth_higher"] == 1.0 and limb["truth_higher_and_guard"] == 1.0 and limb["median_difference"] > 0
+    assert limb["truth_error_mm_median"] < 20 < 100 < limb["tracked_error_mm_median"]

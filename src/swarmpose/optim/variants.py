@@ -49,6 +49,8 @@ def apply_variant(config: Any, variant: str) -> Any:
       ``members=K``: K searches of every frame side by side, the frame's pose their consensus (K >= 3; 1: one
       search; K times the evaluations); ``members_reset=M``: a member with a joint more than M mm from the consensus
       goes on from it (default 80; ``off``: never);
+      ``head=B``: on a sequence with a detector's keypoints, B pattern-search evaluations over the head's parameters
+      after the limbs' searches, kept when they score higher (``off``: 0);
       ``coupled_limits=on``: the hard priors also reject the body model's coupled limits (the shoulders' second
       branch of angles; on in the default tracker, ``off`` turns them off); several variants are joined by ``+``
       (``apf=200x5+refine=0``).
@@ -100,6 +102,12 @@ def apply_variant(config: Any, variant: str) -> Any:
                               f"whole number >= 0) or keypoint_ik_polish=off on a configuration with the keypoint fit "
                               f"({config.name!r}: add keypoint_ik=on first)")
         return dataclasses.replace(config, keypoint_ik_polish=0 if value == "off" else int(value))
+    if head == "head":
+        value = variant.partition("=")[2].strip()
+        if not hasattr(config, "head_search") or not (value == "off" or value.isdigit()):
+            raise ConfigError(f"variant {variant!r}: expected head=B (pattern-search evaluations over the head, a whole "
+                              f"number >= 0) or head=off on a refined configuration ({config.name!r})")
+        return dataclasses.replace(config, head_search=0 if value == "off" else int(value))
     if head == "keypoint_proposals":
         value = variant.partition("=")[2].strip()
         try:

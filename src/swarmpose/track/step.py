@@ -8,8 +8,8 @@ root's height moved by the rise of the silhouettes' triangulated centre since th
 keypoints from the prediction), the optimiser's search
 (on the first frame of a start from the silhouettes: a turn of headings, the best few searched, then more
 rounds from the best), the searches of the body's heading (:mod:`swarmpose.track.turn`) and of the trunk's lean
-(:mod:`swarmpose.track.lean`), the loss detection and re-search of :mod:`swarmpose.track.recovery`, and the per-frame
-keypoint IK of the configurations that ask for it. A frame reads its own observation and, for the keypoint fits,
+(:mod:`swarmpose.track.lean`), the loss detection and re-search of :mod:`swarmpose.track.recovery`, with
+``head_search`` a pattern search of the head's parameters alone, and the per-frame keypoint IK of the configurations that ask for it. A frame reads its own observation and, for the keypoint fits,
 one thing more: a joint its keypoints lack is taken from the nearest tracked frame, up to two either side (the
 earlier first), that has it (:func:`swarmpose.track.start.fill_gaps`), so with keypoints a live run would lag two
 tracked frames behind.
@@ -115,6 +115,7 @@ class FrameSearch:
     keypoint_ik: bool = True  # with kp_joints: each frame's pose fitted to them after the searches
     keypoint_ik_polish: int = 0  # pattern-search evaluations from a keypoint fit that scores no higher
     keypoint_proposals: float = 0.0  # with kp_joints: the carried set's share given to the fit from the prediction
+    head_search: int = 0  # pattern-search evaluations over the head's parameters after the limbs' searches
     _centre: tuple[int, np.ndarray | None] | None = field(default=None, init=False, repr=False)
 
     def note_centre(self, i: int, features: Any) -> tuple[int, np.ndarray | None] | None:
@@ -239,6 +240,13 @@ class FrameSearch:
                 carry = recentre(carry, x, [model.group(LIMBS[limb][1]) for limb in rec.recovered],
                                  model.lower, model.upper)
             recovered = list(rec.recovered)
+        if self.head_search and "head" in model.groups:
+            with timer.part("recovery"):
+                headed = self._search_head(x, {**self.algo.refine_options, **extra})
+            evals += headed.evaluations
+            if not np.array_equal(headed.x, x):
+                x, score = np.array(headed.x, dtype=np.float64), float(headed.score)
+                carry = recentre(carry, x, [model.group("head")], model.lower, model.upper)
         if self.keypoint_ik and self.kp_joints is not None:
             with timer.part("keypoint_ik"):
                 x_ik = keypoint_ik(model, fill_gaps(self.kp_joints, i, reach=2), x, self.constraint)
@@ -259,6 +267,19 @@ class FrameSearch:
                     x, score = x_ik, ik_score
                     carry = recentre(carry, x, [np.arange(model.n_params)], model.lower, model.upper)
         return StepResult(x=x, score=float(score), evaluations=int(evals), carry=carry, recovered=recovered)
+
+    def _search_head(self, x: np.ndarray, options: dict) -> Any:
+        """A pattern search of :attr:`head_search` evaluations over the head's parameters alone from ``x`` (its first
+        step the refinement's), scored with ``options``: the best pose it found (``x`` itself unless one scored
+        higher), its score and its evaluations. The head is one cone that the whole-body searches move only in
+        passing; a search of it alone measures only it (:mod:`swarmpose.fitness._numba_partial`)."""
+        model = self.model
+        step = np.zeros(model.n_params)
+        head = model.group("head")
+        step[head] = self.algo.refine_step * np.asarray(self.algo.sigma, dtype=np.float64)[head]
+        ps = PatternSearch(x, step, int(self.head_search), lower=model.lower, upper=model.upper,
+                           constraint=self.constraint)
+        return optimize(ps, lambda poses: self.fitness.evaluate(poses, options or None))
 
     @property
     def choice_options(self) -> dict | None:

@@ -594,7 +594,8 @@ def run_tracker(
                          lean=LeanSearch.from_settings(getattr(algo, "lean_search", {}))
                          if cfg.fitness_kind in IMAGE_FITNESS else None,
                          heading_speed=getattr(algo, "heading_speed", None), keypoint_ik=fit_keypoints,
-                         keypoint_ik_polish=int(getattr(algo, "keypoint_ik_polish", 0)), keypoint_proposals=proposals)
+                         keypoint_ik_polish=int(getattr(algo, "keypoint_ik_polish", 0)), keypoint_proposals=proposals,
+                         head_search=int(getattr(algo, "head_search", 0)) if keypoints is not None else 0)
     ensemble = None
     if int(getattr(algo, "members", 1)) > 1:  # members side by side; the first uses the run's generator
         children = run_seed(cfg.seed, run).spawn(int(algo.members))  # child 0 is the backward pass's
