@@ -9,10 +9,10 @@ keypoints from the prediction), the optimiser's search
 (on the first frame of a start from the silhouettes: a turn of headings, the best few searched, then more
 rounds from the best), the searches of the body's heading (:mod:`swarmpose.track.turn`) and of the trunk's lean
 (:mod:`swarmpose.track.lean`), the loss detection and re-search of :mod:`swarmpose.track.recovery`, with
-``head_search`` a pattern search of the head's parameters alone, and the per-frame keypoint IK of the configurations that ask for it. A frame reads its own observation and, for the keypoint fits,
-one thing more: a joint its keypoints lack is taken from the nearest tracked frame, up to two either side (the
-earlier first), that has it (:func:`swarmpose.track.start.fill_gaps`), so with keypoints a live run would lag two
-tracked frames behind.
+``head_search`` a pattern search of the head's parameters alone, and the per-frame keypoint IK of the configurations
+that ask for it. A frame reads its own observation and, for the keypoint fits, one thing more: a joint its
+keypoints lack is taken from the nearest tracked frame, up to two either side (the earlier first), that has it
+(:func:`swarmpose.track.start.fill_gaps`), so with keypoints a live run would lag two tracked frames behind.
 
 :func:`backward_pass` tracks a run's frames again from the last one to the first and keeps per frame the better
 of the two passes' poses by the fitness (both scored with the same options); the backward pass goes on from the
