@@ -694,8 +694,8 @@ def _refined_heading(model: Any, fps: float) -> RefinedConfig:
 #: Pattern-search evaluations over the head's parameters alone after the default's limb searches, on a sequence with
 #: keypoints (``head_search``, ``--variant head=B``): the whole-body searches move the head's one cone only in passing,
 #: and a search of it alone brings the head's top nearer the truth: synthetic clips with detected keypoints (20 fps,
-#: seed 0), its mean error 24.6 -> 18.9 mm, D_mean 19.95 -> 19.53 mm (5 runs; mirrored 25.0 -> 19.5 and 20.42 ->
-#: 20.23, 3 runs). Without keypoints the head follows the silhouettes into a raised arm's outline (cmu_131_01 49.7 ->
+#: seed 0, 5 runs), its mean error 24.6 -> 18.9 mm, D_mean 19.95 -> 19.53 mm (mirrored 24.9 -> 19.4 and 20.40 ->
+#: 20.16). Without keypoints the head follows the silhouettes into a raised arm's outline (cmu_131_01 49.7 ->
 #: 91.1 mm), so it is not searched there (docs/results.md).
 HEAD_SEARCH = 50
 
