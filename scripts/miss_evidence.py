@@ -56,11 +56,15 @@ LIMB_OF = {"l_elbow": "left_arm", "l_wrist": "left_arm", "r_elbow": "right_arm",
 TERMS = ("fitness", "silhouette", "edge", "image", "keypoints")
 
 
-def polished(fitness, model, algo, constraint, x: np.ndarray, options: dict, budget: int) -> tuple[np.ndarray, float]:
-    """The top of ``x``'s basin: a pattern search of ``budget`` evaluations over the whole pose with the
-    refinement's step (``refine_step`` of the search's spread) under the run's hard priors."""
-    ps = PatternSearch(np.asarray(x, dtype=np.float64), algo.refine_step * np.asarray(algo.sigma, dtype=np.float64),
-                       budget, lower=model.lower, upper=model.upper, constraint=constraint)
+def polished(fitness, model, algo, constraint, x: np.ndarray, options: dict, budget: int,
+             params: np.ndarray | None = None) -> tuple[np.ndarray, float]:
+    """The top of ``x``'s basin: a pattern search of ``budget`` evaluations over the whole pose (or ``params``
+    alone) with the refinement's step (``refine_step`` of the search's spread) under the run's hard priors."""
+    step = algo.refine_step * np.asarray(algo.sigma, dtype=np.float64)
+    if params is not None:
+        step = np.where(np.isin(np.arange(model.n_params), params), step, 0.0)
+    ps = PatternSearch(np.asarray(x, dtype=np.float64), step, budget, lower=model.lower, upper=model.upper,
+                       constraint=constraint)
     found = optimize(ps, lambda poses: fitness.evaluate(poses, options))
     return np.asarray(found.x), float(found.score)
 
@@ -69,14 +73,7 @@ def limb_tops(fitness, model, algo, constraint, x: np.ndarray, x_truth: np.ndarr
               options: dict, budget: int) -> dict:
     """The tops of the tracked limb's basin and of the truth's, each a pattern search of ``budget`` evaluations over
     the limb's parameters ``group`` alone from ``x`` and ``x_truth``: their scores and silhouette overlap terms."""
-    step = np.zeros(model.n_params)
-    step[group] = algo.refine_step * np.asarray(algo.sigma, dtype=np.float64)[group]
-    tops = []
-    for start in (x, x_truth):
-        ps = PatternSearch(np.asarray(start, dtype=np.float64), step, budget, lower=model.lower, upper=model.upper,
-                           constraint=constraint)
-        found = optimize(ps, lambda poses: fitness.evaluate(poses, options))
-        tops.append((np.asarray(found.x), float(found.score)))
+    tops = [polished(fitness, model, algo, constraint, start, options, budget, group) for start in (x, x_truth)]
     pair = np.stack([tops[0][0], tops[1][0]])
     sil = fitness.evaluate(pair, {**options, "keypoints": 0.0, "terms": "silhouette"})
     return {"poses": pair, "tracked_score": tops[0][1], "truth_score": tops[1][1],

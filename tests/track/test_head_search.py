@@ -41,7 +41,7 @@ def test_the_head_search_moves_the_head_alone_towards_the_evidence(scene):
     x = truth.copy()
     x[model.param_index("neck_flex")] -= np.radians(25.0)
     x[model.param_index("neck_lat")] += np.radians(10.0)
-    found = _search(model, fit, 60)._search_head(x, {})
+    found = _search(model, fit, 60)._polish(x, 60, None, model.group("head"))
     head = model.group("head")
     others = np.setdiff1d(np.arange(model.n_params), head)
     assert np.array_equal(found.x[others], x[others])
@@ -57,6 +57,6 @@ def test_the_head_search_keeps_a_pose_it_cannot_better(scene):
     """From the truth, whose head the evidence already fits, the search finds nothing higher and returns the pose
     it was given."""
     model, truth, fit = scene
-    found = _search(model, fit, 40)._search_head(truth, {})
+    found = _search(model, fit, 40)._polish(truth, 40, None, model.group("head"))
     assert np.array_equal(found.x, truth)
     assert found.score == pytest.approx(float(fit.evaluate(truth[None])[0]))

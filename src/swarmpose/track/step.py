@@ -242,7 +242,7 @@ class FrameSearch:
             recovered = list(rec.recovered)
         if self.head_search and "head" in model.groups:
             with timer.part("recovery"):
-                headed = self._search_head(x, {**self.algo.refine_options, **extra})
+                headed = self._polish(x, self.head_search, self.choice_options, model.group("head"))
             evals += headed.evaluations
             if not np.array_equal(headed.x, x):
                 x, score = np.array(headed.x, dtype=np.float64), float(headed.score)
@@ -256,10 +256,7 @@ class FrameSearch:
                 evals += 1
                 if self.keypoint_ik_polish and not ik_score > score:  # the fit's basin, searched from the fit
                     with timer.part("recovery"):
-                        ps = PatternSearch(x_ik, self.algo.refine_step * np.asarray(self.algo.sigma, dtype=np.float64),
-                                           self.keypoint_ik_polish, lower=model.lower, upper=model.upper,
-                                           constraint=self.constraint)
-                        polished = optimize(ps, lambda poses: fitness.evaluate(poses, ik_options))
+                        polished = self._polish(x_ik, self.keypoint_ik_polish, ik_options)
                     evals += polished.evaluations
                     if polished.score > ik_score:
                         x_ik, ik_score = np.array(polished.x, dtype=np.float64), float(polished.score)
@@ -268,17 +265,17 @@ class FrameSearch:
                     carry = recentre(carry, x, [np.arange(model.n_params)], model.lower, model.upper)
         return StepResult(x=x, score=float(score), evaluations=int(evals), carry=carry, recovered=recovered)
 
-    def _search_head(self, x: np.ndarray, options: dict) -> Any:
-        """A pattern search of :attr:`head_search` evaluations over the head's parameters alone from ``x`` (its first
-        step the refinement's), scored with ``options``: the best pose it found (``x`` itself unless one scored
-        higher), its score and its evaluations. The head is one cone that the whole-body searches move only in
-        passing; a search of it alone measures only it (:mod:`swarmpose.fitness._numba_partial`)."""
+    def _polish(self, x: np.ndarray, budget: int, options: dict | None, params: np.ndarray | None = None) -> Any:
+        """A pattern search of ``budget`` evaluations from ``x`` with the refinement's first step, over ``params``
+        alone (default: every parameter), under the run's hard priors, scored with ``options``: the best pose it
+        found (``x`` itself unless one scored higher), its score and its evaluations. The head's search uses it on
+        the head's parameters: one cone, which the whole-body searches move only in passing, and which a search of it
+        alone measures alone (:mod:`swarmpose.fitness._numba_partial`)."""
         model = self.model
-        step = np.zeros(model.n_params)
-        head = model.group("head")
-        step[head] = self.algo.refine_step * np.asarray(self.algo.sigma, dtype=np.float64)[head]
-        ps = PatternSearch(x, step, int(self.head_search), lower=model.lower, upper=model.upper,
-                           constraint=self.constraint)
+        step = self.algo.refine_step * np.asarray(self.algo.sigma, dtype=np.float64)
+        if params is not None:
+            step = np.where(np.isin(np.arange(model.n_params), params), step, 0.0)
+        ps = PatternSearch(x, step, int(budget), lower=model.lower, upper=model.upper, constraint=self.constraint)
         return optimize(ps, lambda poses: self.fitness.evaluate(poses, options or None))
 
     @property
