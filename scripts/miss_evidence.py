@@ -33,7 +33,6 @@ Run:  .venv/bin/python scripts/miss_evidence.py results/detected-keypoints/cmu_1
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 from pathlib import Path
 
@@ -47,8 +46,9 @@ from swarmpose.joints import JOINTS15
 from swarmpose.optim.base import optimize
 from swarmpose.optim.refine import PatternSearch
 from swarmpose.track.observation import frame_observation
+from swarmpose.track.runner import recorded_config
 from swarmpose.track.start import has_keypoints, tracked_views
-from swarmpose.track.tracker import TrackConfig, _make_fitness, prepare_track, tracker_priors
+from swarmpose.track.tracker import _make_fitness, prepare_track, tracker_priors
 
 #: The joints one limb's parameters move, and that limb's parameter group.
 LIMB_OF = {"l_elbow": "left_arm", "l_wrist": "left_arm", "r_elbow": "right_arm", "r_wrist": "right_arm",
@@ -89,9 +89,7 @@ def tops_summary(d: np.ndarray, tops: list[dict], evaluations: int) -> dict:
 
 
 def clip_evidence(results: Path, runs: int, limit: float, polish: int = 0, limb_polish: int = 0) -> dict:
-    config = read_json_object(results / "config.json")
-    fields = {f.name for f in dataclasses.fields(TrackConfig)}
-    cfg = TrackConfig(**{k: v for k, v in config.items() if k in fields and k != "fitness_kind"})
+    config, cfg = recorded_config(results)
     setup = prepare_track(config["sequence"], cfg, results)
     if not setup.has_ground_truth:
         raise SystemExit(f"{results}: the sequence has no ground truth")

@@ -202,6 +202,13 @@ def test_refined_recovery_of_every_limb_with_the_frames_fitness(model):
     assert apply_variant(v, "recovery_margin=0.01").recovery["margin"] == 0.01
     with pytest.raises(ConfigError, match="recovery_margin"):
         apply_variant(v, "recovery_margin=-1")
+    assert apply_variant(v, "recovery_jump=0.01").recovery["jump"] == 0.01
+    assert apply_variant(v, "recovery_jump=off").recovery["jump"] == 0.0
+    for bad in ("recovery_jump=-1", "recovery_jump=x"):
+        with pytest.raises(ConfigError, match="recovery_jump"):
+            apply_variant(v, bad)
+    with pytest.raises(ConfigError, match="recovery_jump"):
+        apply_variant(optim.get("apf-dr05", model=model, fps=20.0), "recovery_jump=0.01")
     assert apply_variant(v, "recovery_in_turn=1").recovery["in_turn"] == 1
     g = apply_variant(v, "recovery_guard=silhouette")
     assert g.recovery["guard"] == "silhouette" and apply_variant(g, "recovery_guard=off").recovery["guard"] == ""

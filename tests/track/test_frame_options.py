@@ -52,30 +52,38 @@ def _track(path: Path, algo: str, variant: str = "", options: str = "", *, ik_ra
 def test_the_default_weighs_keypoints_where_the_sequence_has_them(short_sequence: Path, keypoint_sequence: Path):
     from swarmpose.body.model import load_model
     from swarmpose.optim import registry
-    from swarmpose.optim.registry import FRAME_KEYPOINT_WEIGHT, HEAD_SEARCH, KEYPOINT_ELBOW, KEYPOINT_JOINTS
+    from swarmpose.optim.registry import (
+        FRAME_KEYPOINT_WEIGHT,
+        HEAD_SEARCH,
+        KEYPOINT_ELBOW,
+        KEYPOINT_JOINTS,
+        RECOVERY_JUMP,
+    )
     from swarmpose.track.start import has_keypoints
 
     with open_sequence(short_sequence) as plain, open_sequence(keypoint_sequence) as kp:
         assert not has_keypoints(plain) and has_keypoints(kp) and kp.gt_joints is not None
     assert registry.get("refined-heading", model=load_model("balan31"), fps=20).frame_options == {
         "keypoints": FRAME_KEYPOINT_WEIGHT, "keypoint_elbow": KEYPOINT_ELBOW, "keypoint_joints": KEYPOINT_JOINTS}
-    # without keypoints: refined-limbs with the turn search, pose for pose
+    # without keypoints: refined-limbs with the turn search and the recovery's jump margin, pose for pose
+    jump = f"recovery_jump={RECOVERY_JUMP:g}"
     np.testing.assert_array_equal(_track(short_sequence, "refined-heading", ik_ran=False),
-                                  _track(short_sequence, "refined-limbs", "turn=on"))
+                                  _track(short_sequence, "refined-limbs", f"turn=on+{jump}"))
     # with them: the term in every search, as the run's own --fitness-options would put it there, the IK, the
     # root's height moved by the trunk's keypoints, and the head searched on its own
     heading = _track(keypoint_sequence, "refined-heading", ik_ran=True)
     assert not np.array_equal(heading, _track(keypoint_sequence, "refined-heading", "height=silhouettes"))
     assert not np.array_equal(heading, _track(keypoint_sequence, "refined-heading", "head=off"))
     np.testing.assert_array_equal(heading, _track(keypoint_sequence, "refined-limbs",
-                                                  f"turn=on+keypoint_ik=on+height=keypoints+head={HEAD_SEARCH}",
+                                                  f"turn=on+keypoint_ik=on+height=keypoints+head={HEAD_SEARCH}+{jump}",
                                                   f"keypoints={FRAME_KEYPOINT_WEIGHT:g},keypoint_elbow={KEYPOINT_ELBOW},"
                                                   f"keypoint_joints={KEYPOINT_JOINTS}"))
     assert not np.array_equal(heading, _track(keypoint_sequence, "refined-limbs", "turn=on+keypoint_ik=on"))
     # the run's own options go over the configuration's: keypoints=0 turns the term off
     np.testing.assert_array_equal(_track(keypoint_sequence, "refined-heading", options="keypoints=0"),
                                   _track(keypoint_sequence, "refined-limbs",
-                                         f"turn=on+keypoint_ik=on+height=keypoints+head={HEAD_SEARCH}", "keypoints=0"))
+                                         f"turn=on+keypoint_ik=on+height=keypoints+head={HEAD_SEARCH}+{jump}",
+                                         "keypoints=0"))
 
 
 def test_the_keypoint_terms_scale_and_swaps_reach_the_searches(keypoint_sequence: Path):

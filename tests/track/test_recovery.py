@@ -163,3 +163,33 @@ def test_the_registry_counts_the_limbs_the_recovery_searches():
     assert cfg.evals_per_frame == optim.get("refined", model=model, fps=20.0).evals_per_frame + len(LIMBS) * per_limb
     assert Recovery.from_settings(cfg.recovery) == Recovery(threshold=-1.0, terms="fitness", guard="silhouette")
     assert cfg.silhouette_height
+
+
+def test_a_jump_margin_grows_with_how_far_the_limb_moves(setup):
+    """``jump``: ``jump`` per 100 mm of the largest joint move; the left arm hangs straight in the frontal plane and
+    abduction turns it about the axis through the shoulder normal to that plane, so the wrist moves by the chord
+    ``2 L sin(theta / 2)``."""
+    model, truth, fitness = setup
+    j15 = model.spec.joints15
+    sh, wr = j15.index("l_shoulder"), j15.index("l_wrist")
+    arm = np.linalg.norm(np.diff(model.joints15(truth[None])[0, [sh, wr]], axis=0))
+    for theta in (0.1, 0.5, 1.2):
+        moved = truth.copy()
+        moved[model.param_index("l_shoulder_abd")] += theta
+        chord = 2 * arm * np.sin(theta / 2)
+        assert Recovery(jump=0.01).jump_margin(model, truth, moved) == pytest.approx(0.01 * chord / 100, rel=1e-6)
+        assert Recovery().jump_margin(model, truth, moved) == 0.0
+    assert Recovery(jump=0.01).jump_margin(model, truth, truth) == 0.0
+
+
+def test_a_jump_margin_keeps_the_limb_unless_the_search_scores_clearly_higher_for_its_move(setup):
+    model, truth, fitness = setup
+    lost = truth.copy()
+    lost[model.param_index("r_shoulder_abd")] += np.radians(90)
+    kw = dict(rng=np.random.default_rng(0), constraint=HardPriors(model).valid, sigma=model.sigma * 3.0)
+    kept = Recovery(jump=1.0).run(fitness, model, lost, **kw)  # 1 per 100 mm: more than a 300 mm move can gain
+    assert kept.lost == ["right_arm"] and kept.recovered == []
+    np.testing.assert_array_equal(kept.x, lost)
+    found = Recovery(jump=0.005).run(fitness, model, lost, **kw)  # the lost arm's gain is far above 0.005 per 100 mm
+    assert found.recovered == ["right_arm"] and arm_error(model, found.x, truth) < 100
+    assert Recovery.from_settings({"jump": 0.01}).jump == 0.01

@@ -127,7 +127,7 @@ def test_refined_heading_is_refined_limbs_with_the_turn_search():
     model = load_model("balan31")
     limbs = registry.get("refined-limbs", model=model, fps=20)
     heading = registry.get("refined-heading", model=model, fps=20)
-    on = apply_variant(limbs, "turn=on")
+    on = apply_variant(limbs, f"turn=on+recovery_jump={registry.RECOVERY_JUMP:g}")  # the recovery's jump margin too
     for f in ("base", "refine_budget", "refine_step", "recovery", "silhouette_height", "turn_search"):
         assert repr(getattr(heading, f)) == repr(getattr(on, f)), f  # (configurations compare by identity)
     assert heading.evals_per_frame == on.evals_per_frame

@@ -94,6 +94,10 @@ def line_occluders(px, py, pz, qx, qy, qz, k, valid, K, poly, nvs, bbox, axis, o
         # cone j can hide a sample only if it is drawn and its axis is nearer somewhere than the line
         if j == k or not valid[j] or min(axis[j, 0, 2], axis[j, 1, 2]) >= zmax:
             continue
+        # outline j lies in its bounding box (clip_segment's own first test, here before the costlier one below)
+        if (max(px, qx) < bbox[j, 0] or min(px, qx) > bbox[j, 1]
+                or max(py, qy) < bbox[j, 2] or min(py, qy) > bbox[j, 3]):
+            continue
         # outline j lies within reach[j] of its projected axis: a line farther away cannot meet it (the margin
         # is far above rounding, so the test never rejects a line that clip_segment finds inside)
         r = reach[j] + 1e-3

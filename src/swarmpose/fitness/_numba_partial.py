@@ -45,7 +45,7 @@ from swarmpose.fitness.threads import fetch_add, store_release
 from swarmpose.render._kernels import bucket_outlines, cone_outline, hidden, n_samples, pixel_value
 
 #: Hash of the kernel sources this module's cached kernels inline (see :mod:`swarmpose.fitness._numba`).
-INLINED_SOURCES_SHA1 = "278bd87150db2a8c"
+INLINED_SOURCES_SHA1 = "67f14f0576431013"
 
 __all__ = ["stay_base", "eval_claim_moving", "eval_claim_moving_go"]
 

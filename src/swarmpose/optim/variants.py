@@ -11,6 +11,17 @@ from .base import ConfigError
 __all__ = ["apply_variant"]
 
 
+def _number(variant: str, off: float | None = None) -> float:
+    """The number after ``=`` in ``variant`` (``off`` where it says ``off`` and ``off`` is given); NaN when it is none."""
+    value = variant.partition("=")[2].strip()
+    if off is not None and value == "off":
+        return off
+    try:
+        return float(value)
+    except ValueError:
+        return float("nan")
+
+
 def apply_variant(config: Any, variant: str) -> Any:
     """Modify a named optimiser configuration; every variant states its budget.
 
@@ -28,7 +39,8 @@ def apply_variant(config: Any, variant: str) -> Any:
       search per lost limb unchanged); ``recovery=all``: every limb searched again on every frame;
       ``recovery_terms=fitness``: the limbs searched again and kept by the frame's own fitness (``distance``:
       the silhouette distance term, the default; ``silhouette``: the silhouette overlap term alone); ``recovery_margin=M``: a searched-again limb kept only when
-      it scores more than M above the one it replaces; ``recovery_guard=silhouette``: a searched-again limb kept
+      it scores more than M above the one it replaces; ``recovery_jump=R``: and R more per 100 mm that its joints move
+      (``off``: 0); ``recovery_guard=silhouette``: a searched-again limb kept
       only when the silhouette overlap term does not fall either; ``recovery_in_turn=K``: only K limbs looked at per frame,
       in turn (with ``recovery=all`` each limb is searched every 4/K frames); ``recovery_search=SxR``: each searched limb's
       box search asks S poses in each of R rounds (default 100 x 5), ``recovery_refine=B``: then B pattern-search
@@ -109,11 +121,7 @@ def apply_variant(config: Any, variant: str) -> Any:
                               f"number >= 0) or head=off on a refined configuration ({config.name!r})")
         return dataclasses.replace(config, head_search=0 if value == "off" else int(value))
     if head == "keypoint_proposals":
-        value = variant.partition("=")[2].strip()
-        try:
-            f = 0.0 if value == "off" else float(value)
-        except ValueError:
-            f = float("nan")
+        f = _number(variant, off=0.0)
         if not hasattr(config, "keypoint_proposals") or not 0.0 <= f < 1.0:
             raise ConfigError(f"variant {variant!r}: expected keypoint_proposals=F (a share of the carried particle "
                               f"set's weight, 0 <= F < 1) or keypoint_proposals=off on a refined configuration "
@@ -141,24 +149,24 @@ def apply_variant(config: Any, variant: str) -> Any:
                               f"configuration with the turn search ({config.name!r}: add turn=on first)")
         return dataclasses.replace(config, turn_search={**dict(config.turn_search), "keypoints": value == "on"})
     if head == "turn_margin":
-        value = variant.partition("=")[2].strip()
-        try:
-            m = float(value)
-        except ValueError:
-            m = float("nan")
+        m = _number(variant)
         if not getattr(config, "turn_search", None) or not (math.isfinite(m) and m >= 0):
             raise ConfigError(f"variant {variant!r}: expected turn_margin=M, a score margin >= 0, on a configuration "
                               f"with the turn search ({config.name!r}: add turn=on first)")
         return dataclasses.replace(config, turn_search={**dict(config.turn_search), "margin": m})
     if head == "recovery_margin":
-        try:
-            m = float(variant.partition("=")[2])
-        except ValueError:
-            m = float("nan")
+        m = _number(variant)
         if not getattr(config, "recovery", None) or not (math.isfinite(m) and m >= 0):
             raise ConfigError(f"variant {variant!r}: expected recovery_margin=M, a score margin >= 0, on a "
                               f"configuration with limb recovery ({config.name!r})")
         return dataclasses.replace(config, recovery={**dict(config.recovery), "margin": m})
+    if head == "recovery_jump":
+        m = _number(variant, off=0.0)
+        if not getattr(config, "recovery", None) or not (math.isfinite(m) and m >= 0):
+            raise ConfigError(f"variant {variant!r}: expected recovery_jump=R, a score margin >= 0 per 100 mm that the "
+                              f"searched limb's joints move, or off, on a configuration with limb recovery "
+                              f"({config.name!r})")
+        return dataclasses.replace(config, recovery={**dict(config.recovery), "jump": m})
     if head == "recovery_guard":
         value = variant.partition("=")[2].strip()
         if not getattr(config, "recovery", None) or value not in ("silhouette", "off"):

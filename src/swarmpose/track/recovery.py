@@ -61,6 +61,11 @@ class Recovery:
     margin : float
         The searched-again limb is kept only when it scores more than this above the limb it replaces (0:
         any gain): a limb the fitness cannot tell from another place stays where the track had it.
+    jump : float
+        The searched-again limb is kept only when it scores more than ``margin + jump * d / 100`` above the limb it
+        replaces, ``d`` the largest move in mm of a joint between the two (the rest of the body is held, so only the
+        limb's joints move): a limb moves far from where the frame's search left it only on clear evidence (0: no
+        such term).
     guard : str
         ``""``: the searched limb is kept on its score alone. ``"silhouette"``: it is kept only when the silhouette
         overlap term does not fall either (two more evaluations per searched limb), so that a limb the edges
@@ -80,6 +85,7 @@ class Recovery:
     margin: float = 0.0
     guard: str = ""
     in_turn: int = 0
+    jump: float = 0.0
 
     @classmethod
     def from_settings(cls, settings: Mapping[str, Any]) -> Recovery | None:
@@ -87,7 +93,7 @@ class Recovery:
         if not settings:
             return None
         unknown = set(settings) - {"threshold", "n_samples", "n_rounds", "refine_budget", "terms", "margin",
-                                   "guard", "in_turn"}
+                                   "guard", "in_turn", "jump"}
         if unknown:
             raise ConfigError(f"unknown recovery setting(s) {sorted(unknown)}")
         return cls(**dict(settings))
@@ -119,6 +125,14 @@ class Recovery:
             return names
         parts = fitness.part_agreement(np.asarray(x, np.float64)[None])[0]
         return [limb for limb in names if parts[limbs[limb][0]].max() > self.threshold]
+
+    def jump_margin(self, model: Any, x: np.ndarray, cand: np.ndarray) -> float:
+        """The score margin :attr:`jump` asks of pose ``cand`` to replace pose ``x``: ``jump`` per 100 mm of the
+        largest move of one of the 15 joints between them (0 without ``jump``)."""
+        if not self.jump:
+            return 0.0
+        joints = model.joints15(np.stack([x, cand]))
+        return self.jump * float(np.linalg.norm(joints[1] - joints[0], axis=-1).max()) / 100.0
 
     def run(self, fitness: Any, model: Any, x: np.ndarray, rng: np.random.Generator,
             constraint: Callable[[np.ndarray], np.ndarray] | None, sigma: np.ndarray,
@@ -158,7 +172,7 @@ class Recovery:
                 polished = optimize(ps, lambda poses: fitness.evaluate(poses, options))
                 result.evaluations += polished.evaluations
                 cand, score = polished.x, polished.score
-            keep = score > first[0] + self.margin
+            keep = score > first[0] + self.margin + self.jump_margin(model, x, cand)
             if keep and self.guard:
                 sil = fitness.evaluate(np.stack([x, cand]), {**(options or {}), "terms": self.guard})
                 result.evaluations += 2

@@ -42,7 +42,8 @@ from swarmpose.track.tracker import (
 )
 
 __all__ = ["Job", "check_results_folder", "check_sequence_data", "close_client", "connect_scheduler",
-           "errors_from_summary", "finished_run", "resolve_sequence", "run_job", "run_jobs", "track_runs"]
+           "errors_from_summary", "finished_run", "recorded_config", "resolve_sequence", "run_job", "run_jobs",
+           "track_runs"]
 
 
 @dataclass(frozen=True)
@@ -354,6 +355,16 @@ def errors_from_summary(summary: dict[str, Any]) -> TrackErrors:
     """Rebuild :class:`TrackErrors` (without the per-frame array) from a run's summary dict."""
     keys = ("d_mean", "d_max", "d_std", "mmta", "mmtp", "mu", "sigma")
     return TrackErrors(d_per_frame=np.zeros(0), per_joint=summary["per_joint"], **{k: summary[k] for k in keys})
+
+
+def recorded_config(results: Path) -> tuple[dict[str, Any], TrackConfig]:
+    """A results folder's ``config.json`` and the tracking settings it records (its other entries, such as the
+    versions and the resolved fitness, left out; a setting written before it existed takes its default)."""
+    from dataclasses import fields
+
+    record = read_json_object(Path(results) / "config.json")
+    names = {f.name for f in fields(TrackConfig)}
+    return record, TrackConfig(**{k: v for k, v in record.items() if k in names})
 
 
 def check_results_folder(out_dir: Path, sequence: str | Path, config: TrackConfig, runs: int, resume: bool) -> None:
