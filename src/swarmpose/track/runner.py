@@ -18,7 +18,7 @@ import time
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from contextlib import contextmanager
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 from typing import Any
 
@@ -360,8 +360,6 @@ def errors_from_summary(summary: dict[str, Any]) -> TrackErrors:
 def recorded_config(results: Path) -> tuple[dict[str, Any], TrackConfig]:
     """A results folder's ``config.json`` and the tracking settings it records (its other entries, such as the
     versions and the resolved fitness, left out; a setting written before it existed takes its default)."""
-    from dataclasses import fields
-
     record = read_json_object(Path(results) / "config.json")
     names = {f.name for f in fields(TrackConfig)}
     return record, TrackConfig(**{k: v for k, v in record.items() if k in names})
